@@ -1,0 +1,223 @@
+"""The ``facecap`` command line: a thin layer over the library.
+
+Every command validates its input at the boundary; bad input prints one line
+naming the file and the problem and exits with status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import warnings
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+
+from . import __version__
+from .errors import FacecapError, FacecapWarning
+
+__all__ = ["main"]
+
+EXIT_BAD_INPUT = 2
+
+
+def _add_animate(sub: argparse._SubParsersAction) -> None:
+    from .deform.thin_shell import DEFAULT_KB_MM2, DEFAULT_KS
+
+    p = sub.add_parser(
+        "animate",
+        help="animate a face scan from a mocap take (Bickel et al. 2007, large scale)",
+        description="Animate a static face scan from a facial mocap take: markers are gap-filled, "
+        "optionally stabilised and filtered, mapped onto the scan by a triharmonic space warp, "
+        "and drive a linear thin shell at the scan's full resolution.",
+    )
+    p.add_argument("--scan", required=True, help="face scan: .obj, .ply or .glb")
+    p.add_argument("--scan-units", default="mm", help="length unit of the scan file (files do not say): mm, cm, m, in [mm]")
+    p.add_argument("--markers", required=True, help="mocap take: .c3d, .trc or .csv")
+    p.add_argument("--marker-units", default=None, help="override the unit the marker file declares")
+    p.add_argument("--map", required=True, help="JSON map: marker label -> scan vertex index or 3D point")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--rest-frame", type=int, default=0, help="frame whose expression matches the scan [0]")
+    p.add_argument("--ks", type=float, default=DEFAULT_KS, help=f"stretching stiffness, dimensionless [{DEFAULT_KS}]")
+    p.add_argument("--kb", type=float, default=DEFAULT_KB_MM2, help=f"bending stiffness in mm^2 [{DEFAULT_KB_MM2}]")
+    p.add_argument(
+        "--stabilize", default="off",
+        help="remove rigid head motion: 'off', 'auto' (find stable markers) or comma-separated labels [off]",
+    )
+    p.add_argument("--no-smooth", action="store_true", help="skip the spatio-temporal bilateral filter")
+    p.add_argument("--export", default="", help="extra exports, comma-separated: obj, ply, usd")
+    p.add_argument("--unmarked-pieces", choices=("carry", "rigid"), default="carry",
+                   help="pieces with no marker (eyes, teeth): follow the nearest marked surface, or stay [carry]")
+    p.add_argument("--batch-frames", type=int, default=32, help="frames per dense product [32]")
+    p.set_defaults(func=_cmd_animate)
+
+
+def _cmd_animate(args: argparse.Namespace) -> int:
+    from .deform.animate_scan import animate_scan
+    from .io.read_correspondence import read_correspondence
+    from .io.read_markers import read_markers
+    from .io.read_mesh import read_mesh
+
+    scan = read_mesh(args.scan, unit=args.scan_units)
+    take = read_markers(args.markers, unit=args.marker_units)
+    corr = read_correspondence(args.map, scan)
+    stabilize: bool | list[str]
+    if args.stabilize in ("off", "none", "no"):
+        stabilize = False
+    elif args.stabilize == "auto":
+        stabilize = True
+    else:
+        stabilize = [s.strip() for s in args.stabilize.split(",") if s.strip()]
+    exports = [e.strip().lower() for e in args.export.split(",") if e.strip()]
+    if args.batch_frames < 1:
+        raise FacecapError(f"--batch-frames: expected a positive integer, got {args.batch_frames}")
+    result = animate_scan(
+        scan, take, corr, args.out,
+        rest_frame=args.rest_frame, ks=args.ks, kb=args.kb, stabilize=stabilize,
+        smooth=not args.no_smooth, exports=exports, unmarked_pieces=args.unmarked_pieces,
+        batch_frames=args.batch_frames, progress=not args.quiet,
+        extra_metadata={"map": str(args.map)},
+    )
+    if not args.quiet:
+        t = result.report["timings"]
+        print(
+            f"wrote {result.out_dir}: {result.report['n_frames']} frames x {result.report['n_vertices']} vertices "
+            f"from {result.report['n_markers']} markers (set-up {t['shell_setup_s']:.1f} s, "
+            f"{t['frames_per_second']:.0f} frames/s)"
+        )
+        if result.report["warp_outliers"]:
+            print(f"check these markers' scan vertices (large leave-one-out warp residual): "
+                  f"{', '.join(result.report['warp_outliers'])}")
+    return 0
+
+
+def _add_info(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("info", help="what a marker file, mesh or result folder holds")
+    p.add_argument("file", help="a .c3d/.trc/.csv take, an .obj/.ply/.glb mesh, or a facecap output folder")
+    p.add_argument("--units", default=None, help="length unit of a mesh file (default mm)")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    p.set_defaults(func=_cmd_info)
+
+
+def _cmd_info(args: argparse.Namespace) -> int:
+    from .report.describe import describe_file
+
+    info = describe_file(args.file, unit=args.units)
+    if args.json:
+        print(json.dumps(info, indent=2))
+    else:
+        _print_info(info)
+    return 0
+
+
+def _print_info(info: dict, indent: str = "") -> None:
+    for key, value in info.items():
+        if isinstance(value, dict):
+            print(f"{indent}{key}:")
+            _print_info(value, indent + "  ")
+        elif isinstance(value, list) and value and isinstance(value[0], str) and len(value) > 8:
+            print(f"{indent}{key}: {', '.join(value)}")
+        else:
+            print(f"{indent}{key}: {value}")
+
+
+def _add_evaluate(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("evaluate", help="dense error of a result against ground truth")
+    p.add_argument("--truth", required=True, help="ground truth .npz (as written by facecap's generator)")
+    p.add_argument("--result", required=True, help="a facecap output folder")
+    p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    p.set_defaults(func=_cmd_evaluate)
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from .report.evaluate_result import evaluate_result
+
+    error = evaluate_result(args.truth, args.result)
+    summary = error.to_dict()
+    if args.json:
+        print(json.dumps(summary, indent=2))
+        return 0
+    print(
+        f"dense error over {summary['n_frames']} frames x {summary['n_vertices']} vertices: "
+        f"mean {summary['mean_mm']:.3f} mm, p95 {summary['p95_mm']:.3f} mm, max {summary['max_mm']:.3f} mm "
+        f"(mean {summary['mean_percent_diagonal']:.3f}% of the {summary['bbox_diagonal_mm']:.1f} mm diagonal)"
+    )
+    for name, region in (summary.get("regions") or {}).items():
+        print(f"  {name:>12}: mean {region['mean_mm']:.3f} mm, p95 {region['p95_mm']:.3f} mm, max {region['max_mm']:.3f} mm")
+    return 0
+
+
+def _add_demo(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("demo", help="run the main job on the bundled sample, writing facecap-demo/")
+    p.add_argument("--out", default="facecap-demo", help="output folder [facecap-demo]")
+    p.add_argument("--frames", type=int, default=300, help="frames of the generated take [300]")
+    p.set_defaults(func=_cmd_demo)
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from .demo import run_demo
+
+    summary = run_demo(args.out, n_frames=args.frames, progress=not args.quiet)
+    if not args.quiet:
+        for line in summary:
+            print(line)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``facecap`` command."""
+    parser = argparse.ArgumentParser(
+        prog="facecap",
+        description="Facial performance capture: animate a face scan from a facial mocap take.",
+    )
+    parser.add_argument("--version", action="version", version=f"facecap {__version__}")
+    parser.add_argument("-q", "--quiet", action="store_true", help="no progress bars or notices")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _add_animate(sub)
+    _add_info(sub)
+    _add_evaluate(sub)
+    _add_demo(sub)
+    for action in sub.choices.values():  # let -q/--quiet also follow the command
+        action.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                            help="no progress bars or notices")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``facecap`` console script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "quiet"):
+        args.quiet = False
+
+    def show_warning(message, category, filename, lineno, file=None, line=None):  # noqa: ANN001
+        if not args.quiet:
+            print(f"facecap: note: {message}", file=sys.stderr)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", FacecapWarning)
+        warnings.showwarning = show_warning  # one line per notice, no source echo
+        try:
+            return int(args.func(args) or 0)
+        except FacecapError as exc:
+            print(f"facecap: error: {exc}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except FileNotFoundError as exc:
+            print(f"facecap: error: {exc.filename}: no such file", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except IsADirectoryError as exc:
+            print(f"facecap: error: {exc.filename}: is a folder, expected a file", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except PermissionError as exc:
+            print(f"facecap: error: {exc.filename}: permission denied", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        except KeyboardInterrupt:
+            print("facecap: interrupted; nothing was written to the output folder", file=sys.stderr)
+            return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

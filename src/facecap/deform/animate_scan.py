@@ -1,0 +1,419 @@
+"""The large-scale pipeline of Bickel et al. 2007 (section 4), end to end, streamed."""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..errors import FacecapWarning, InputError, MarkerError
+from ..io.read_correspondence import Correspondence, match_correspondence
+from ..io.write_performance import PerformanceWriter
+from ..markers.bilateral_filter import bilateral_filter
+from ..markers.fill_gaps import fill_gaps
+from ..markers.rigid_fit import rigid_fit
+from ..markers.stabilize_head import stabilize_head
+from ..mesh.check_mesh import check_mesh
+from ..structures import MarkerSequence, Mesh
+from .factor_spd import Backend
+from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces
+from .triharmonic_warp import TriharmonicWarp
+
+__all__ = ["animate_scan", "AnimationResult", "prepare_markers", "PreparedMarkers"]
+
+_MIN_MARKERS = 4
+
+
+@dataclass(frozen=True)
+class PreparedMarkers:
+    """Conditioned markers mapped onto the scan, ready to drive the deformation.
+
+    Attributes
+    ----------
+    labels : tuple of str, length K
+        Markers that drive the scan, in column order.
+    positions : (T, K, 3) float64 array, mm
+        Conditioned mocap-space positions (gap-filled, stabilised, filtered).
+    raw_positions : (T, K, 3) float64 array, mm
+        The same markers as read, NaN in gaps.
+    scan_points : (K, 3) float64 array, mm
+        Where each marker sits on the scan.
+    constrained_vertices : (K,) int64 array
+        Scan vertex that carries each marker in the shell solve.
+    filled : (T, K) bool array
+        Samples made up by gap filling.
+    head_rotations, head_translations : (T, 3, 3), (T, 3) float64 arrays or None
+        Stabilising transform per frame (mocap space), when stabilised.
+    stabilization_residual : (T,) float64 array or None, mm
+        RMS misfit of the stable markers after stabilisation.
+    stable_labels : tuple of str
+        Markers used for stabilisation.
+    notes : list of str
+        What was dropped, filled or ignored.
+    """
+
+    labels: tuple[str, ...]
+    positions: np.ndarray
+    raw_positions: np.ndarray
+    scan_points: np.ndarray
+    constrained_vertices: np.ndarray
+    filled: np.ndarray
+    head_rotations: np.ndarray | None = None
+    head_translations: np.ndarray | None = None
+    stabilization_residual: np.ndarray | None = None
+    stable_labels: tuple[str, ...] = ()
+    notes: list[str] = field(default_factory=list)
+
+
+def prepare_markers(
+    markers: MarkerSequence,
+    scan: Mesh,
+    correspondence: Correspondence,
+    *,
+    rest_frame: int = 0,
+    stabilize: bool | Sequence[str] = False,
+    smooth: bool = True,
+) -> PreparedMarkers:
+    """Match, gap-fill, stabilise and filter a take for :func:`animate_scan`.
+
+    Parameters
+    ----------
+    markers : MarkerSequence
+        The take, all markers (unmapped head-band markers help stabilisation).
+    scan : Mesh
+        The scan the correspondence refers to.
+    correspondence : Correspondence
+        Marker label -> scan point map.
+    rest_frame : int, default 0
+        Frame whose expression matches the scan's.
+    stabilize : bool or sequence of str, default False
+        Remove rigid head motion: ``True`` picks the stable markers
+        automatically, a list of labels names them.
+    smooth : bool, default True
+        Apply the spatio-temporal bilateral filter (section 3).
+
+    Returns
+    -------
+    PreparedMarkers
+
+    Raises
+    ------
+    MarkerError
+        If the rest frame is out of range, every mapped marker is missing at
+        the rest frame, or fewer than 4 markers are usable.
+    """
+    T = markers.n_frames
+    if not (0 <= rest_frame < T):
+        raise MarkerError(f"--rest-frame {rest_frame} is outside the take (0..{T - 1})", path=markers.source_path)
+    notes: list[str] = []
+    corr, columns, ignored = match_correspondence(correspondence, markers.labels)
+    if ignored:
+        notes.append(f"markers not in the map, used only for stabilisation: {', '.join(ignored)}")
+    if len(columns) < _MIN_MARKERS:
+        raise MarkerError(
+            f"only {len(columns)} marker(s) of the take are in the map; at least {_MIN_MARKERS} are needed",
+            path=markers.source_path,
+        )
+    raw = markers.positions
+    seen_at_rest = ~np.isnan(raw[rest_frame, columns]).any(axis=1)
+    if not seen_at_rest.any():
+        raise MarkerError(
+            f"every mapped marker is missing at the rest frame {rest_frame}; choose another --rest-frame",
+            path=markers.source_path,
+        )
+
+    filled = fill_gaps(raw, rate=markers.rate)
+    P = filled.positions
+    head_R = head_t = stab_res = None
+    stable_labels: tuple[str, ...] = ()
+    if stabilize is not False and stabilize is not None:
+        stable_idx = None
+        if not isinstance(stabilize, bool):
+            index = markers.label_index()
+            unknown = [s for s in stabilize if s not in index]
+            if unknown:
+                raise MarkerError(f"--stabilize names markers not in the take: {unknown}", path=markers.source_path)
+            stable_idx = [index[s] for s in stabilize]
+        stab = stabilize_head(P, rest_frame=rest_frame, stable_markers=stable_idx)
+        P = stab.positions
+        head_R, head_t, stab_res = stab.rotations, stab.translations, stab.residual_rms
+        stable_labels = tuple(markers.labels[i] for i in stab.stable_markers)
+    if smooth:
+        P = bilateral_filter(P, rate=markers.rate, rest_frame=rest_frame)
+
+    P = P[:, columns]
+    usable = ~np.isnan(P[rest_frame]).any(axis=1) & ~np.isnan(P).all(axis=(0, 2))
+    if not usable.all():
+        dropped = [corr.labels[i] for i in np.flatnonzero(~usable)]
+        notes.append(f"markers never seen or unrecoverable at the rest frame, dropped: {', '.join(dropped)}")
+    if usable.sum() < _MIN_MARKERS:
+        raise MarkerError(
+            f"only {int(usable.sum())} usable marker(s) at the rest frame {rest_frame}; at least {_MIN_MARKERS} are needed",
+            path=markers.source_path,
+        )
+    keep = np.flatnonzero(usable)
+    scan_points = corr.points(scan.vertices)[keep]
+    constrained = corr.vertex_indices[keep, np.argmax(corr.weights[keep], axis=1)]
+    n_filled = int(filled.filled_mask[:, columns][:, keep].sum())
+    if n_filled:
+        notes.append(f"{n_filled} occluded marker samples filled")
+    return PreparedMarkers(
+        labels=tuple(corr.labels[i] for i in keep),
+        positions=P[:, keep],
+        raw_positions=raw[:, columns][:, keep],
+        scan_points=scan_points,
+        constrained_vertices=np.asarray(constrained, dtype=np.int64),
+        filled=filled.filled_mask[:, columns][:, keep],
+        head_rotations=head_R,
+        head_translations=head_t,
+        stabilization_residual=stab_res,
+        stable_labels=stable_labels,
+        notes=notes,
+    )
+
+
+@dataclass(frozen=True)
+class AnimationResult:
+    """What :func:`animate_scan` did.
+
+    Attributes
+    ----------
+    out_dir : Path
+        The finished output folder.
+    report : dict
+        The content of ``report.json`` (timings, residuals, warnings).
+    """
+
+    out_dir: Path
+    report: dict[str, Any]
+
+
+def animate_scan(
+    scan: Mesh,
+    markers: MarkerSequence,
+    correspondence: Correspondence,
+    out_dir: str | Path,
+    *,
+    rest_frame: int = 0,
+    ks: float = DEFAULT_KS,
+    kb: float = DEFAULT_KB_MM2,
+    stabilize: bool | Sequence[str] = False,
+    smooth: bool = True,
+    exports: Iterable[str] = (),
+    unmarked_pieces: UnmarkedPieces = "carry",
+    batch_frames: int = 32,
+    backend: Backend = "auto",
+    progress: bool = True,
+    extra_metadata: dict[str, Any] | None = None,
+) -> AnimationResult:
+    """Animate a scan from a mocap take (Bickel et al. 2007, section 4) and write the result.
+
+    Markers are conditioned (:func:`prepare_markers`), mapped to face space
+    by the triharmonic warp (section 4.1), and drive the linear thin shell
+    (section 4.2). Frames are computed in batches and streamed to ``out_dir``,
+    so memory does not grow with the take's length.
+
+    Parameters
+    ----------
+    scan : Mesh
+        The static scan (mm inside; the output is in its own unit).
+    markers : MarkerSequence
+        The take.
+    correspondence : Correspondence
+        Marker label -> scan point.
+    out_dir : str or Path
+        Output folder (see :class:`~facecap.io.write_performance.PerformanceWriter`).
+    rest_frame : int, default 0
+        Frame of the take whose expression matches the scan.
+    ks, kb : float
+        Stretching (dimensionless) and bending (mm^2) stiffness, see
+        :class:`~facecap.deform.thin_shell.ThinShellSolver`.
+    stabilize : bool or sequence of str, default False
+        Remove rigid head motion before deforming (the head motion is kept in
+        ``head_motion.npy`` and the USD export).
+    smooth : bool, default True
+        Spatio-temporal bilateral filtering of the markers.
+    exports : iterable of {'obj', 'ply', 'usd'}
+        Extra per-frame exports.
+    unmarked_pieces : {'carry', 'rigid'}, default 'carry'
+        What pieces of the scan without markers do.
+    batch_frames : int, default 32
+        Frames per dense product.
+    backend : {'auto', 'pardiso', 'scipy'}
+        Sparse factorisation backend.
+    progress : bool, default True
+        Show a progress bar.
+    extra_metadata : dict, optional
+        Added to ``performance.json`` (e.g. source file names).
+
+    Returns
+    -------
+    AnimationResult
+    """
+    timings: dict[str, float] = {}
+    caught: list[str] = []
+    t0 = time.perf_counter()
+    with warnings.catch_warnings(record=True) as records:
+        warnings.simplefilter("always", FacecapWarning)
+        mesh_check = check_mesh(scan.vertices, scan.faces)
+        timings["check_mesh_s"] = time.perf_counter() - t0
+
+        t = time.perf_counter()
+        prepared = prepare_markers(
+            markers, scan, correspondence, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth
+        )
+        timings["condition_markers_s"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        warp = TriharmonicWarp(prepared.positions[rest_frame], prepared.scan_points)
+        face_markers = warp(prepared.positions)  # (T, K, 3), face space
+        displacements = face_markers - prepared.scan_points[None]
+        loo = warp.leave_one_out_residuals()
+        timings["correspondence_warp_s"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        solver = ThinShellSolver(
+            scan.vertices, scan.faces, prepared.constrained_vertices,
+            ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend,
+        )
+        timings["shell_setup_s"] = time.perf_counter() - t
+        for w in records:
+            if issubclass(w.category, FacecapWarning):
+                caught.append(str(w.message))
+    for message in caught:
+        warnings.warn(message, FacecapWarning, stacklevel=2)
+
+    # Per-frame marker residual of the deformed scan: distance between each
+    # marker's warped position and its point on the deformed surface. Zero for
+    # vertex maps; the snapping error for barycentric ones.
+    constrained_rest = scan.vertices[prepared.constrained_vertices]
+    snap_offset = prepared.scan_points - constrained_rest
+    marker_residual = np.linalg.norm(
+        (constrained_rest[None] + displacements + snap_offset[None]) - face_markers, axis=2
+    )
+    head_pose = _head_pose_in_scan(prepared, warp, rest_frame) if prepared.head_rotations is not None else None
+
+    T, n = markers.n_frames, scan.n_vertices
+    t = time.perf_counter()
+    rest32 = scan.vertices.astype(np.float32)
+    disp32 = displacements.astype(np.float32)
+    metadata = {
+        "source_files": {"scan": scan.source_path, "markers": markers.source_path},
+        "source_units": {"scan": scan.source_unit, "markers": markers.source_unit},
+        "method": "bickel2007-large-scale",
+        "rest_frame": rest_frame,
+        "stabilized": head_pose is not None,
+        "parameters": {
+            "ks": ks, "kb_mm2": kb, "smooth": smooth, "unmarked_pieces": unmarked_pieces,
+            "stable_markers": list(prepared.stable_labels), "backend": solver.backend,
+        },
+        "markers": list(prepared.labels),
+        "first_frame": markers.first_frame,
+        **(extra_metadata or {}),
+    }
+    with PerformanceWriter(out_dir, mesh=scan, rate=markers.rate, n_frames=T, exports=exports) as writer:
+        buffers = [np.empty((min(batch_frames, T), n, 3), np.float32) for _ in range(2)]
+        pending = [None, None]
+        bar = tqdm(total=T, unit="frame", desc="animate", disable=not progress, leave=False)
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            for k, start in enumerate(range(0, T, batch_frames)):
+                stop = min(start + batch_frames, T)
+                slot = k % 2
+                if pending[slot] is not None:
+                    pending[slot].result()  # the buffer is free once its write finished
+                out = buffers[slot][: stop - start]
+                solver.deform_into(disp32[start:stop], rest32, out)
+                pose = None if head_pose is None else head_pose[start:stop]
+                # one writer thread runs the writes in order while the next batch is computed
+                pending[slot] = pool.submit(writer.write_frames, start, out, head_pose=pose)
+                bar.update(stop - start)
+            for p in pending:
+                if p is not None:
+                    p.result()
+        bar.close()
+        timings["deform_and_write_s"] = time.perf_counter() - t
+        timings["frames_per_second"] = T / max(timings["deform_and_write_s"], 1e-9)
+        timings["total_s"] = time.perf_counter() - t0
+
+        if head_pose is not None:
+            np.save(writer.path("head_motion.npy"), _pose_to_unit(head_pose, scan))
+        report = {
+            "timings": timings,
+            "n_frames": T,
+            "n_vertices": n,
+            "n_markers": len(prepared.labels),
+            "mesh_check": mesh_check.summary(),
+            "pieces": solver.pieces.to_dict(),
+            "warp_leave_one_out_mm": dict(zip(prepared.labels, np.round(loo, 4).tolist())),
+            "warp_outliers": _outliers(prepared.labels, loo),
+            "marker_residual_mm": {
+                "per_frame_max": marker_residual.max(axis=1).tolist(),
+                "max": float(marker_residual.max()),
+            },
+            "conditioning_mm": {
+                "per_frame_rms_change": _rms_change(prepared.raw_positions, prepared.positions, prepared).tolist(),
+            },
+            "filled_samples": int(prepared.filled.sum()),
+            "stabilization_residual_mm": None
+            if prepared.stabilization_residual is None
+            else prepared.stabilization_residual.tolist(),
+            "notes": prepared.notes,
+            "warnings": caught,
+        }
+        writer.path("report.json").write_text(json.dumps(report, indent=1))
+        metadata["timings"] = timings
+        final = writer.finish(metadata)
+    return AnimationResult(out_dir=final, report=report)
+
+
+def _head_pose_in_scan(prepared: PreparedMarkers, warp: TriharmonicWarp, rest_frame: int) -> np.ndarray:
+    """Head motion per frame as 4x4 transforms in scan coordinates (mm).
+
+    The stabiliser maps frame t onto the rest frame in mocap space (x' = R_t x + t_t);
+    the head motion is its inverse, carried into scan space by the rigid part
+    ``A`` of the correspondence warp: ``P_t = A S_t^-1 A^-1``.
+    """
+    fit = rigid_fit(prepared.positions[rest_frame], prepared.scan_points)
+    A = np.eye(4)
+    A[:3, :3], A[:3, 3] = fit.rotation, fit.translation
+    S = np.tile(np.eye(4), (prepared.head_rotations.shape[0], 1, 1))
+    S[:, :3, :3], S[:, :3, 3] = prepared.head_rotations, prepared.head_translations
+    return A[None] @ np.linalg.inv(S) @ np.linalg.inv(A)[None]
+
+
+def _pose_to_unit(pose: np.ndarray, scan: Mesh) -> np.ndarray:
+    out = pose.copy()
+    out[:, :3, 3] = scan.to_source_unit(out[:, :3, 3])
+    return out
+
+
+def _outliers(labels: Sequence[str], loo: np.ndarray) -> list[str]:
+    """Markers whose leave-one-out warp residual stands out (likely mis-picked vertices)."""
+    finite = np.isfinite(loo)
+    if finite.sum() < 5:
+        return []
+    med = float(np.median(loo[finite]))
+    mad = float(np.median(np.abs(loo[finite] - med))) + 1e-9
+    return [labels[i] for i in np.flatnonzero(finite & (loo > med + 6 * 1.4826 * mad) & (loo > 2.0))]
+
+
+def _rms_change(raw: np.ndarray, conditioned: np.ndarray, prepared: PreparedMarkers) -> np.ndarray:
+    """Per-frame RMS distance between raw and conditioned markers where both exist (mm).
+
+    With stabilisation the raw markers are first moved by the same rigid
+    transform, so only the filtering change is measured.
+    """
+    R = raw
+    if prepared.head_rotations is not None:
+        R = np.einsum("tij,tkj->tki", prepared.head_rotations, raw) + prepared.head_translations[:, None]
+    d2 = np.sum((R - conditioned) ** 2, axis=2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return np.sqrt(np.nanmean(d2, axis=1))

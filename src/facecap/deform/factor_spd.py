@@ -1,0 +1,139 @@
+"""Sparse symmetric positive-definite factorisation with a choice of backend."""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any, Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import FacecapWarning, InputError, SolverError
+from ..typing import FloatArray
+
+__all__ = ["SpdFactor", "available_backends"]
+
+Backend = Literal["auto", "pardiso", "scipy"]
+
+
+def available_backends() -> list[str]:
+    """Names of the sparse factorisation backends importable here, fastest first."""
+    names = []
+    try:
+        import pypardiso  # noqa: F401
+
+        names.append("pardiso")
+    except Exception:  # MKL is x86-only: pypardiso may be missing or fail to load
+        pass
+    names.append("scipy")
+    return names
+
+
+class SpdFactor:
+    """Factor a sparse symmetric positive-definite matrix once, solve many times.
+
+    Parameters
+    ----------
+    A : (n, n) scipy.sparse matrix, float64
+        Symmetric positive definite.
+    backend : {'auto', 'pardiso', 'scipy'}, default 'auto'
+        ``'pardiso'``: MKL PARDISO in real-symmetric-positive-definite mode
+        (``mtype=2``, upper triangle only) through pypardiso; at 700k
+        vertices it factors the thin-shell system in seconds and about
+        1.5 GB. ``'scipy'``: SuperLU (``scipy.sparse.linalg.splu``); always
+        available but about 20x slower and 8x the memory on large meshes.
+        ``'auto'`` takes PARDISO where it loads, else SuperLU with a warning.
+
+    Raises
+    ------
+    SolverError
+        If the factorisation fails (the matrix is singular or not SPD).
+
+    Examples
+    --------
+    >>> import scipy.sparse as sp, numpy as np
+    >>> A = sp.diags([4.0, 5.0, 6.0]).tocsr()
+    >>> np.allclose(SpdFactor(A).solve(np.ones(3)), [0.25, 0.2, 1 / 6])
+    True
+    """
+
+    def __init__(self, A: sp.spmatrix, *, backend: Backend = "auto") -> None:
+        if not sp.issparse(A) or A.shape[0] != A.shape[1]:
+            raise InputError(f"A: expected a square sparse matrix, got {type(A).__name__} {getattr(A, 'shape', '')}")
+        if backend not in ("auto", "pardiso", "scipy"):
+            raise InputError(f"backend: expected one of 'auto', 'pardiso', 'scipy', got {backend!r}")
+        have = available_backends()
+        if backend == "auto":
+            backend = have[0]  # type: ignore[assignment]
+            if backend != "pardiso":
+                warnings.warn(
+                    "pypardiso (MKL PARDISO) is not available; using SciPy's SuperLU, "
+                    "which is much slower and uses more memory on large scans",
+                    FacecapWarning,
+                    stacklevel=2,
+                )
+        elif backend not in have:
+            raise InputError(f"backend: {backend!r} is not available here (have {have})")
+        self.backend: str = backend
+        self.n = int(A.shape[0])
+        A = sp.csr_matrix(A, dtype=np.float64)
+        self._impl: Any
+        if backend == "pardiso":
+            self._factor_pardiso(A)
+        else:
+            self._factor_scipy(A)
+
+    def _factor_pardiso(self, A: sp.csr_matrix) -> None:
+        import pypardiso
+
+        solver = pypardiso.PyPardisoSolver(mtype=2)
+        # No iterative refinement: the factor of an SPD system is accurate, and
+        # refinement would re-read A on every solve.
+        solver.set_iparm(8, 0)
+        upper = sp.triu(A, format="csr")
+        upper.sort_indices()
+        try:
+            solver.factorize(upper)
+        except Exception as exc:  # pypardiso raises its own PyPardisoError
+            raise SolverError(f"sparse factorisation failed: {exc}") from None
+        self._impl = (solver, upper)
+
+    def _factor_scipy(self, A: sp.csr_matrix) -> None:
+        from scipy.sparse.linalg import splu
+
+        try:
+            self._impl = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                              options={"SymmetricMode": True})
+        except RuntimeError as exc:
+            raise SolverError(f"sparse factorisation failed: {exc}") from None
+
+    def solve(self, b: FloatArray) -> FloatArray:
+        """Solve ``A x = b``.
+
+        Parameters
+        ----------
+        b : (n,) or (n, k) float64 array
+            Right-hand side(s).
+
+        Returns
+        -------
+        x : float64 array, same shape as ``b``
+        """
+        b = np.asarray(b, dtype=np.float64)
+        if b.shape[0] != self.n:
+            raise InputError(f"b: expected {self.n} rows, got {b.shape[0]}")
+        if self.backend == "pardiso":
+            solver, upper = self._impl
+            x = solver.solve(upper, np.ascontiguousarray(b))
+        else:
+            x = self._impl.solve(b)
+        if not np.all(np.isfinite(x)):
+            raise SolverError("the sparse solve produced non-finite values (singular system)")
+        return x
+
+    def free(self) -> None:
+        """Release the factor's memory now rather than at garbage collection."""
+        if self.backend == "pardiso" and self._impl is not None:
+            solver, _ = self._impl
+            solver.free_memory(everything=False)
+        self._impl = None

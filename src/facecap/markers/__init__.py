@@ -1,0 +1,22 @@
+"""Marker conditioning: gap filling, denoising, head stabilisation and rigid fits.
+
+The usual order for a raw take is :func:`fill_gaps`, :func:`stabilize_head`,
+then :func:`bilateral_filter` on the stabilised positions.
+"""
+
+from __future__ import annotations
+
+from .bilateral_filter import bilateral_filter
+from .fill_gaps import FilledMarkers, fill_gaps
+from .rigid_fit import RigidTransform, rigid_fit
+from .stabilize_head import Stabilization, stabilize_head
+
+__all__ = [
+    "FilledMarkers",
+    "RigidTransform",
+    "Stabilization",
+    "bilateral_filter",
+    "fill_gaps",
+    "rigid_fit",
+    "stabilize_head",
+]

@@ -1,0 +1,183 @@
+"""The small frozen records that travel together through I/O and the CLI.
+
+Algorithms take and return plain arrays; these records only bundle what a file
+holds so that nothing (units, labels, rate, UVs) gets lost on the way. They hold
+no hidden caches.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .errors import MarkerError
+from .typing import BoolArray, FloatArray, IntArray
+from .units import mm_per_unit, normalize_unit
+from .validate import as_faces, as_marker_positions, as_vertices
+
+__all__ = ["Mesh", "MarkerSequence"]
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A surface mesh in millimetres, keeping the file's vertex order and polygons.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64 array, mm
+        Vertex positions, in the file's order and count.
+    faces : (m, 3) int64 array
+        Triangles used by the solvers (polygons fan-triangulated).
+    polygon_sizes : (k,) int64 array or None
+        Corner count of each original polygon, for export; None if the file
+        held triangles only (then ``faces`` are the polygons).
+    polygon_indices : (sum(polygon_sizes),) int64 array or None
+        Vertex index of each polygon corner, polygons one after another.
+    uvs : (u, 2) float64 array or None
+        Texture coordinates.
+    uv_indices : (sum(polygon_sizes) or 3 m,) int64 array or None
+        UV index of each polygon corner (face-varying), aligned with
+        ``polygon_indices`` (or with ``faces.ravel()`` when there are no polygons).
+    source_unit : {'mm', 'cm', 'm', 'in'}
+        The length unit of the file the mesh came from; ``vertices`` are
+        already converted to mm.
+    source_path : str or None
+        The file the mesh was read from.
+    """
+
+    vertices: FloatArray
+    faces: IntArray
+    polygon_sizes: IntArray | None = None
+    polygon_indices: IntArray | None = None
+    uvs: FloatArray | None = None
+    uv_indices: IntArray | None = None
+    source_unit: str = "mm"
+    source_path: str | None = None
+
+    def __post_init__(self) -> None:
+        V = as_vertices(self.vertices, name="vertices")
+        object.__setattr__(self, "vertices", V)
+        object.__setattr__(self, "faces", as_faces(self.faces, V.shape[0], name="faces"))
+        object.__setattr__(self, "source_unit", normalize_unit(self.source_unit, name="source_unit"))
+        if (self.polygon_sizes is None) != (self.polygon_indices is None):
+            raise ValueError("polygon_sizes and polygon_indices go together")
+        if self.polygon_sizes is not None:
+            sizes = np.ascontiguousarray(self.polygon_sizes, dtype=np.int64)
+            idx = np.ascontiguousarray(self.polygon_indices, dtype=np.int64)
+            if sizes.sum() != idx.size:
+                raise ValueError("polygon_sizes do not add up to len(polygon_indices)")
+            object.__setattr__(self, "polygon_sizes", sizes)
+            object.__setattr__(self, "polygon_indices", idx)
+
+    @property
+    def n_vertices(self) -> int:
+        """Number of vertices."""
+        return int(self.vertices.shape[0])
+
+    @property
+    def n_faces(self) -> int:
+        """Number of triangles."""
+        return int(self.faces.shape[0])
+
+    def export_polygons(self) -> tuple[IntArray, IntArray]:
+        """Return ``(sizes, indices)`` of the faces to export: the original polygons if kept."""
+        if self.polygon_sizes is not None and self.polygon_indices is not None:
+            return self.polygon_sizes, self.polygon_indices
+        return np.full(self.n_faces, 3, dtype=np.int64), self.faces.ravel()
+
+    def to_source_unit(self, points_mm: np.ndarray) -> np.ndarray:
+        """Convert points in mm back to this mesh's source unit (for export)."""
+        return points_mm / mm_per_unit(self.source_unit)
+
+    def with_vertices(self, vertices: FloatArray) -> "Mesh":
+        """A copy of this mesh with other vertex positions (mm), same topology."""
+        return replace(self, vertices=vertices)
+
+
+@dataclass(frozen=True, eq=False)
+class MarkerSequence:
+    """A labelled marker take in millimetres, NaN for occluded samples.
+
+    Parameters
+    ----------
+    positions : (T, M, 3) float64 array, mm
+        Marker positions per frame; NaN where the marker was not seen.
+    labels : tuple of str, length M
+        Marker names, unique.
+    rate : float
+        Frame rate in Hz.
+    source_unit : {'mm', 'cm', 'm', 'in'}
+        Unit of the file the take came from; ``positions`` are in mm.
+    source_path : str or None
+        The file the take was read from.
+    first_frame : int
+        Number of the first frame in the capture system's own numbering
+        (C3D ``first_frame``, TRC ``Frame#``), for timecodes.
+    """
+
+    positions: FloatArray
+    labels: tuple[str, ...]
+    rate: float
+    source_unit: str = "mm"
+    source_path: str | None = None
+    first_frame: int = 0
+    residuals: FloatArray | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        P = as_marker_positions(self.positions, name="positions")
+        object.__setattr__(self, "positions", P)
+        labels = tuple(str(s) for s in self.labels)
+        if len(labels) != P.shape[1]:
+            raise MarkerError(f"labels: expected {P.shape[1]} labels, got {len(labels)}")
+        if len(set(labels)) != len(labels):
+            dup = sorted({s for s in labels if labels.count(s) > 1})
+            raise MarkerError(f"labels: duplicate marker labels {dup}")
+        object.__setattr__(self, "labels", labels)
+        rate = float(self.rate)
+        if not np.isfinite(rate) or rate <= 0:
+            raise MarkerError(f"rate: expected a positive frame rate in Hz, got {self.rate!r}")
+        object.__setattr__(self, "rate", rate)
+        object.__setattr__(self, "source_unit", normalize_unit(self.source_unit, name="source_unit"))
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames T."""
+        return int(self.positions.shape[0])
+
+    @property
+    def n_markers(self) -> int:
+        """Number of markers M."""
+        return int(self.positions.shape[1])
+
+    @property
+    def times(self) -> FloatArray:
+        """(T,) float64 time of each frame in seconds, from the start of the take."""
+        return np.arange(self.n_frames, dtype=np.float64) / self.rate
+
+    @property
+    def gap_mask(self) -> BoolArray:
+        """(T, M) bool, True where a marker is occluded."""
+        return np.isnan(self.positions).any(axis=2)
+
+    def label_index(self) -> dict[str, int]:
+        """Map of label to marker column."""
+        return {s: i for i, s in enumerate(self.labels)}
+
+    def select(self, labels: list[str] | tuple[str, ...]) -> "MarkerSequence":
+        """The take restricted to ``labels``, in that order."""
+        index = self.label_index()
+        missing = [s for s in labels if s not in index]
+        if missing:
+            raise MarkerError(f"labels not in the take: {missing}")
+        cols = [index[s] for s in labels]
+        return replace(
+            self,
+            positions=self.positions[:, cols],
+            labels=tuple(labels),
+            residuals=None if self.residuals is None else self.residuals[:, cols],
+        )
+
+    def with_positions(self, positions: FloatArray) -> "MarkerSequence":
+        """A copy with other positions (mm), same labels and rate."""
+        return replace(self, positions=positions, residuals=None)

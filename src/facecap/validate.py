@@ -1,0 +1,91 @@
+"""Validators shared by every public entry point.
+
+Each names the argument, what was expected and what arrived, and raises an
+:class:`~facecap.errors.InputError` subclass. Never use ``assert`` for input.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError, MarkerError, MeshError
+from .typing import FloatArray, IntArray
+
+__all__ = ["as_vertices", "as_faces", "as_marker_positions", "as_points", "as_positive"]
+
+
+def as_points(X: Any, *, name: str, dim: int = 3, allow_nan: bool = False) -> FloatArray:
+    """Return ``X`` as a C-contiguous (k, dim) float64 array, or raise."""
+    try:
+        A = np.ascontiguousarray(X, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: expected a numeric (k, {dim}) array ({exc})") from None
+    if A.ndim != 2 or A.shape[1] != dim:
+        raise InputError(f"{name}: expected shape (k, {dim}), got {A.shape}")
+    if not allow_nan and not np.all(np.isfinite(A)):
+        raise InputError(f"{name}: contains NaN or infinite values")
+    return A
+
+
+def as_vertices(V: Any, *, name: str = "V") -> FloatArray:
+    """Return ``V`` as (n, 3) float64, finite, with at least 3 rows, or raise MeshError."""
+    try:
+        A = as_points(V, name=name)
+    except InputError as exc:
+        raise MeshError(str(exc)) from None
+    if A.shape[0] < 3:
+        raise MeshError(f"{name}: expected at least 3 vertices, got {A.shape[0]}")
+    return A
+
+
+def as_faces(F: Any, n_vertices: int, *, name: str = "F", corners: int = 3) -> IntArray:
+    """Return ``F`` as (m, corners) int64 with every index in ``[0, n_vertices)``, or raise.
+
+    Out-of-range indices crash some libraries (libigl segfaults) and pass
+    silently through others, so they are always checked here.
+    """
+    A = np.asarray(F)
+    if A.ndim != 2 or A.shape[1] != corners:
+        raise MeshError(f"{name}: expected shape (m, {corners}), got {A.shape}")
+    if A.shape[0] == 0:
+        raise MeshError(f"{name}: the mesh has no faces")
+    if not np.issubdtype(A.dtype, np.integer):
+        if not np.all(np.isfinite(A)) or np.any(A != np.round(A)):
+            raise MeshError(f"{name}: face indices must be integers")
+    A = np.ascontiguousarray(A, dtype=np.int64)
+    lo, hi = int(A.min()), int(A.max())
+    if lo < 0 or hi >= n_vertices:
+        bad = int(np.flatnonzero(np.any((A < 0) | (A >= n_vertices), axis=1))[0])
+        raise MeshError(
+            f"{name}: face {bad} has vertex index out of range "
+            f"(indices span {lo}..{hi}, mesh has {n_vertices} vertices)"
+        )
+    return A
+
+
+def as_marker_positions(P: Any, *, name: str = "positions") -> FloatArray:
+    """Return marker positions as (T, M, 3) float64; NaN marks a gap, inf is rejected."""
+    try:
+        A = np.ascontiguousarray(P, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise MarkerError(f"{name}: expected a numeric (T, M, 3) array ({exc})") from None
+    if A.ndim != 3 or A.shape[2] != 3:
+        raise MarkerError(f"{name}: expected shape (T, M, 3), got {A.shape}")
+    if A.shape[0] < 1 or A.shape[1] < 1:
+        raise MarkerError(f"{name}: expected at least one frame and one marker, got {A.shape}")
+    if np.any(np.isinf(A)):
+        raise MarkerError(f"{name}: contains infinite values (use NaN for gaps)")
+    return A
+
+
+def as_positive(x: Any, *, name: str, allow_zero: bool = False) -> float:
+    """Return ``x`` as a finite float that is > 0 (or >= 0), or raise."""
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a number, got {x!r}") from None
+    if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        raise InputError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {x!r}")
+    return v
