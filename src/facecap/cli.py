@@ -137,13 +137,16 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 
     error = evaluate_result(args.truth, args.result)
     summary = error.to_dict()
+    summary.pop("per_frame_mean_mm", None)
+    summary.pop("per_frame_max_mm", None)
     if args.json:
         print(json.dumps(summary, indent=2))
         return 0
     print(
         f"dense error over {summary['n_frames']} frames x {summary['n_vertices']} vertices: "
         f"mean {summary['mean_mm']:.3f} mm, p95 {summary['p95_mm']:.3f} mm, max {summary['max_mm']:.3f} mm "
-        f"(mean {summary['mean_percent_diagonal']:.3f}% of the {summary['bbox_diagonal_mm']:.1f} mm diagonal)"
+        f"(mean {summary['mean_pct']:.3f}%, p95 {summary['p95_pct']:.3f}%, max {summary['max_pct']:.3f}% "
+        f"of the {summary['diagonal_mm']:.1f} mm bounding-box diagonal)"
     )
     for name, region in (summary.get("regions") or {}).items():
         print(f"  {name:>12}: mean {region['mean_mm']:.3f} mm, p95 {region['p95_mm']:.3f} mm, max {region['max_mm']:.3f} mm")

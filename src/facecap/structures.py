@@ -112,8 +112,10 @@ class MarkerSequence:
     source_path : str or None
         The file the take was read from.
     first_frame : int
-        Number of the first frame in the capture system's own numbering
-        (C3D ``first_frame``, TRC ``Frame#``), for timecodes.
+        0-based number of the first frame in the capture system's own
+        numbering (C3D header frame 1 and TRC ``Frame#`` 1 are 0), for timecodes.
+    residuals : (T, M) float64 array, mm, or None
+        Per-sample C3D residual, NaN at gaps; None for formats without one.
     """
 
     positions: FloatArray

@@ -53,9 +53,9 @@ def test_matches_brute_force_on_random_memmap(tmp_path):
     assert res.n_frames == T and res.n_vertices == int(mask.sum())
     assert res.mean_mm == pytest.approx(e.mean(), rel=1e-12)
     assert res.max_mm == pytest.approx(e.max(), rel=1e-12)
-    # Histogram quantiles: documented to be within 0.01 % of numpy's.
-    assert res.median_mm == pytest.approx(np.median(e), rel=1e-4)
-    assert res.p95_mm == pytest.approx(np.percentile(e, 95), rel=1e-4)
+    # Histogram quantiles: documented to be within one bin (2**-13 relative) of numpy's.
+    assert res.median_mm == pytest.approx(np.median(e), rel=2**-13)
+    assert res.p95_mm == pytest.approx(np.percentile(e, 95), rel=2**-13)
     t, i = np.unravel_index(np.argmax(np.where(mask, e_all, -1)), e_all.shape)
     assert (res.max_frame, res.max_vertex) == (t, i)
     np.testing.assert_allclose(res.per_frame_mean_mm, e.mean(axis=1), rtol=1e-12)
@@ -67,11 +67,23 @@ def test_matches_brute_force_on_random_memmap(tmp_path):
         assert r.n_vertices == int(sel.sum())
         assert r.mean_mm == pytest.approx(e_all[:, sel].mean(), rel=1e-12)
         assert r.max_mm == pytest.approx(e_all[:, sel].max(), rel=1e-12)
-        assert r.p95_mm == pytest.approx(np.percentile(e_all[:, sel], 95), rel=1e-4)
+        assert r.p95_mm == pytest.approx(np.percentile(e_all[:, sel], 95), rel=2**-10)
     # The chunk size does not change the answer.
     res1 = evaluate_performance(Rm, G, vertex_mask=mask, chunk_frames=1000)
     assert res1.mean_mm == pytest.approx(res.mean_mm, rel=1e-12)
     assert res1.p95_mm == res.p95_mm
+
+
+def test_float32_inputs_match_float64_brute_force():
+    rng = np.random.default_rng(3)
+    G = (rng.normal(size=(6, 300, 3)) * 80.0).astype(np.float32)
+    R = (G + rng.normal(size=G.shape) * 0.3).astype(np.float32)
+    e = _brute(R, G)
+    res = evaluate_performance(R, G, chunk_frames=4)
+    assert res.mean_mm == pytest.approx(e.mean(), rel=1e-6)
+    assert res.max_mm == pytest.approx(e.max(), rel=1e-6)
+    assert res.p95_mm == pytest.approx(np.percentile(e, 95), rel=2**-13)
+    np.testing.assert_allclose(res.per_vertex_mean_mm, e.mean(axis=0), rtol=1e-5)
 
 
 def test_to_dict_is_json_ready():

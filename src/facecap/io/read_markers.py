@@ -209,23 +209,23 @@ def _read_text(p: Path) -> str:
         return data.decode("latin-1")
 
 
-def _to_float_rows(rows: list[list[str]], line_numbers: list[int], first_col: int, path: str) -> FloatArray:
+def _to_float_rows(rows: list[list[str]], line_numbers: list[int], path: str) -> FloatArray:
     """Parse string cells to float64 (empty cell -> NaN), naming the line of a bad cell."""
     cleaned = [[c.strip() or "nan" for c in row] for row in rows]
     try:
         return np.array(cleaned, dtype=np.float64)
     except ValueError:
         pass
-    for row, line in zip(cleaned, line_numbers):
+    out = np.empty((len(cleaned), len(cleaned[0])), dtype=np.float64)
+    for i, (row, line) in enumerate(zip(cleaned, line_numbers)):
         for j, cell in enumerate(row):
             try:
-                float(cell)
+                out[i, j] = float(cell)
             except ValueError:
                 raise FileFormatError(
-                    f"line {line}, column {first_col + j + 1}: expected a number, got {cell!r}",
-                    path=path,
+                    f"line {line}, column {j + 1}: expected a number, got {cell!r}", path=path
                 ) from None
-    raise FileFormatError("could not parse the numeric data", path=path)  # pragma: no cover
+    return out
 
 
 def _consecutive_frames(frames: FloatArray, line_numbers: list[int], path: str, column: str) -> int:
@@ -334,7 +334,7 @@ def _read_trc(text: str, path: str, unit_override: str | None) -> MarkerSequence
         )
     if n_frames == 0:
         raise FileFormatError("the file holds no frames", path=path)
-    data = _to_float_rows(rows, line_numbers, 0, path)
+    data = _to_float_rows(rows, line_numbers, path)
     first = _consecutive_frames(data[:, 0], line_numbers, path, "Frame#")
     times = data[:, 1]
     if n_frames >= 2 and np.isfinite(times).all():
@@ -382,7 +382,8 @@ def _read_csv(text: str, path: str, unit_override: str | None) -> MarkerSequence
     for j in range(2, len(columns), 3):
         triple = columns[j : j + 3]
         label = triple[0][:-2]
-        if [c.lower() for c in triple] != [f"{label}_x".lower(), f"{label}_y".lower(), f"{label}_z".lower()] or not label:
+        expected = [f"{label}_{axis}".lower() for axis in "xyz"]
+        if not label or [c.lower() for c in triple] != expected:
             raise FileFormatError(
                 f"line {header_line}, columns {j + 1}-{j + 3}: expected <label>_x,<label>_y,<label>_z, "
                 f"got {','.join(triple)!r}",
@@ -405,7 +406,7 @@ def _read_csv(text: str, path: str, unit_override: str | None) -> MarkerSequence
         line_numbers.append(i + 1)
     if not rows:
         raise FileFormatError("the file holds no frames", path=path)
-    data = _to_float_rows(rows, line_numbers, 0, path)
+    data = _to_float_rows(rows, line_numbers, path)
     first = _consecutive_frames(data[:, 0], line_numbers, path, "frame")
     n_frames = data.shape[0]
 
@@ -436,13 +437,21 @@ def _rate_from_times(times: FloatArray, line_numbers: list[int], path: str) -> f
     dt = (times[-1] - times[0]) / (times.size - 1)
     if not dt > 0:
         raise FileFormatError(f"the time column does not increase; {hint}", path=path)
-    deviation = np.abs(times - (times[0] + dt * np.arange(times.size)))
+    steps = np.arange(times.size)
+    deviation = np.abs(times - (times[0] + dt * steps))
     if deviation.max() > 0.1 * dt:
         i = int(np.argmax(deviation))
         raise FileFormatError(
             f"line {line_numbers[i]}: the time column is not evenly spaced, so the rate cannot be inferred; {hint}",
             path=path,
         )
+    # Times written with few decimals make 1 / dt slightly off a whole rate (240 -> 239.995);
+    # take the whole rate when it explains the times as well as the fitted one does.
+    whole = round(1.0 / dt)
+    if whole > 0:
+        whole_deviation = np.abs(times - (times[0] + steps / whole)).max()
+        if whole_deviation <= 2.0 * deviation.max() + 1e-9:
+            return float(whole)
     return float(1.0 / dt)
 
 
@@ -514,7 +523,6 @@ def _c3d_layout(p: Path) -> _C3DLayout:
     word = struct.Struct("<H")
     sword = struct.Struct("<h")
     n_points, n_analog, first, last = struct.unpack_from("<4H", head, 2)
-    scale_is_float = bool(head[15 if processor == 84 else 13] & 0x80)
     data_start, analog_per_frame = struct.unpack_from("<2H", head, 16)
 
     # Walk the parameter records exactly as ezc3d will, bounds-checking each one.
@@ -631,13 +639,23 @@ def _c3d_layout(p: Path) -> _C3DLayout:
         raise bad(f"the header puts the data at block {data_start}, beyond the end of the file (truncated)")
     if (int_value("ROTATION", "USED") or 0) > 0:
         rot_start = int_value("ROTATION", "DATA_START") or 0
-        if not (data_start <= rot_start and (rot_start - 1) * 512 <= size) or (int_value("ROTATION", "RATIO") or 0) < 1:
+        rot_ratio = int_value("ROTATION", "RATIO") or 0
+        if not (data_start <= rot_start and (rot_start - 1) * 512 <= size) or rot_ratio < 1:
             raise bad("the ROTATION parameters point outside the file (truncated or corrupt)")
     if last < first:
         raise bad(f"the header's frame range {first}..{last} is inverted (corrupt)")
 
     if last == 0xFFFF:
         return _C3DLayout(n_points=n_points, declared_frames=None)
+    # ezc3d stores points as float when POINT:SCALE is negative (-1 when the parameter is
+    # missing), whatever the header's copy of the scale says; size the frames the same way.
+    scale_entry = by_group.get("POINT", {}).get("SCALE")
+    if scale_entry is None:
+        scale_is_float = True
+    elif scale_entry[0] == 4:
+        scale_is_float = bool(scale_entry[2][3 if processor == 84 else 1] & 0x80)
+    else:
+        scale_is_float = sword.unpack_from(scale_entry[2].ljust(2, b"\0"), 0)[0] < 0
     n_frames = (last - first + 1) if first != 0 else last + 1
     frame_bytes = (4 * n_points + n_analog) * (4 if scale_is_float else 2)
     needed = data_offset + n_frames * frame_bytes
@@ -666,7 +684,7 @@ def _read_c3d(p: Path, unit_override: str | None) -> MarkerSequence:
         header = c3d["header"]["points"]
     except Exception as exc:  # ezc3d raises OSError, ValueError, RuntimeError, IndexError, ...
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-        raise FileFormatError(f"is not a readable C3D file ({reason})", path=path) from None
+        raise FileFormatError(f"not a readable C3D file ({reason})", path=path) from None
 
     n_points = layout.n_points
     if points.ndim != 3 or points.shape[0] < 3 or points.shape[1] != n_points:

@@ -99,7 +99,7 @@ def _check_labels(markers: MarkerSequence, p: Path, *, forbidden: str, what: str
 
 
 def _format_block(values: np.ndarray) -> list[str]:
-    """Rows of shortest round-trip float text, empty for NaN, joined by a placeholder comma."""
+    """Each row as comma-joined shortest round-trip float text, an empty cell for NaN."""
     out = []
     for row in values.tolist():
         out.append(",".join("" if v != v else repr(v) for v in row))
@@ -166,7 +166,10 @@ def _write_c3d(markers: MarkerSequence, p: Path, file_unit: str) -> None:
     scale = 1.0 / mm_per_unit(file_unit)
     xyz = markers.positions * scale  # (T, M, 3)
     gaps = markers.gap_mask
-    residuals = np.zeros((T, M)) if markers.residuals is None else np.asarray(markers.residuals, dtype=np.float64) * scale
+    if markers.residuals is None:
+        residuals = np.zeros((T, M))
+    else:
+        residuals = np.asarray(markers.residuals, dtype=np.float64) * scale
     residuals = np.where(np.isfinite(residuals) & (residuals >= 0), residuals, 0.0)
     top = float(residuals[~gaps].max()) if (~gaps).any() else 0.0
     step = top / _RESIDUAL_STEPS if top > 0 and math.isfinite(top) else 1.0

@@ -162,12 +162,8 @@ class PerformanceWriter:
             raise InputError(f"more frames than announced ({self.n_frames})")
         block = block_mm * self._unit_scale if self._unit_scale != 1 else block_mm
         self._npy.write(block)
-        if self._usd is not None:
-            pose = None
-            if head_pose is not None:
-                pose = np.array(head_pose, dtype=np.float64)
-                pose[:, :3, 3] *= float(self._unit_scale)
-            self._usd.write_frames(start, block, head_pose=pose)
+        if self._usd is not None:  # the USD writer takes mm and converts itself
+            self._usd.write_frames(start, block_mm, head_pose=head_pose)
         if "obj" in self.exports or "ply" in self.exports:
             from .write_mesh import write_mesh
 

@@ -1,0 +1,91 @@
+"""Dense error of a facecap output folder against a ground-truth file (``facecap evaluate``)."""
+
+from __future__ import annotations
+
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import FileFormatError, InputError
+from ..io.write_performance import read_performance_info
+from ..units import mm_per_unit
+from .evaluate_performance import DenseError, evaluate_performance
+
+__all__ = ["evaluate_result", "read_truth"]
+
+
+def read_truth(path: str | Path) -> dict[str, np.ndarray]:
+    """Read a ground-truth ``.npz`` written by :func:`facecap.synth.write_synthetic_case`.
+
+    Keys: ``vertices`` (T, n, 3) float32 in ``units``; ``units`` (str);
+    optional ``head_pose`` (T, 4, 4) rigid head motion in scan coordinates
+    (translation in ``units``), ``region_labels`` (n,) and ``region_names``.
+
+    Raises
+    ------
+    FileFormatError
+        If the file is not such an archive.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(2, "No such file", str(p))
+    try:
+        data = np.load(p, allow_pickle=False)
+        truth = {k: data[k] for k in data.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise FileFormatError(f"not a readable ground-truth .npz ({exc})", path=str(p)) from None
+    if "vertices" not in truth or truth["vertices"].ndim != 3 or truth["vertices"].shape[2] != 3:
+        raise FileFormatError("expected a 'vertices' array of shape (T, n, 3)", path=str(p))
+    return truth
+
+
+def evaluate_result(truth_path: str | Path, result_dir: str | Path) -> DenseError:
+    """Compare a result folder with ground truth, in mm.
+
+    A stabilised result is compared with the expression-only truth; an
+    unstabilised one with the truth moved by the head motion relative to the
+    rest frame (which is what the warp maps onto the scan).
+
+    Parameters
+    ----------
+    truth_path : str or Path
+        Ground-truth ``.npz`` (see :func:`read_truth`).
+    result_dir : str or Path
+        A finished ``facecap animate`` output folder.
+
+    Returns
+    -------
+    DenseError
+
+    Raises
+    ------
+    InputError
+        If frame or vertex counts differ.
+    """
+    truth = read_truth(truth_path)
+    info = read_performance_info(result_dir)
+    result = np.load(Path(result_dir) / "vertices.npy", mmap_mode="r")
+    T_truth = truth["vertices"]
+    if result.shape != T_truth.shape:
+        raise InputError(
+            f"result has {result.shape[0]} frames x {result.shape[1]} vertices, "
+            f"truth has {T_truth.shape[0]} x {T_truth.shape[1]}",
+            path=str(result_dir),
+        )
+    truth_unit = str(truth["units"]) if "units" in truth else "mm"
+    truth_mm = T_truth.astype(np.float32) * np.float32(mm_per_unit(truth_unit))
+    if not info.get("stabilized", False) and "head_pose" in truth:
+        rest = int(info.get("rest_frame", 0))
+        pose = truth["head_pose"].astype(np.float64)
+        pose[:, :3, 3] *= mm_per_unit(truth_unit)
+        relative = np.linalg.inv(pose[rest])[None] @ pose
+        truth_mm = (
+            np.einsum("tij,tnj->tni", relative[:, :3, :3].astype(np.float32), truth_mm)
+            + relative[:, None, :3, 3].astype(np.float32)
+        )
+    result_scale = np.float32(mm_per_unit(info.get("units", "mm")))
+    result_mm = result if result_scale == 1 else np.asarray(result) * result_scale
+    names = [str(s) for s in truth["region_names"]] if "region_names" in truth else None
+    labels = truth.get("region_labels")
+    return evaluate_performance(result_mm, truth_mm, region_labels=labels, region_names=names)

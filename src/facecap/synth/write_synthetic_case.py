@@ -1,0 +1,88 @@
+"""Write a generated case to disk as a user would hold it: scan, take, map, ground truth."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+
+from ..io._atomic import atomic_path, atomic_write_text
+from ..io.write_markers import write_markers
+from ..io.write_mesh import write_mesh
+from ..units import mm_per_unit
+from .generate_performance import SyntheticCase
+
+__all__ = ["write_synthetic_case", "CaseFiles"]
+
+
+class CaseFiles(NamedTuple):
+    """Paths of a written case."""
+
+    scan: Path
+    markers: Path
+    map: Path
+    truth: Path
+
+
+def write_synthetic_case(
+    case: SyntheticCase,
+    folder: str | Path,
+    *,
+    scan_unit: str = "mm",
+    marker_format: str = "c3d",
+    region_labels: np.ndarray | None = None,
+    region_names: list[str] | None = None,
+) -> CaseFiles:
+    """Write ``scan.obj``, ``take.<fmt>``, ``map.json`` and ``truth.npz`` into ``folder``.
+
+    Parameters
+    ----------
+    case : SyntheticCase
+        From :func:`~facecap.synth.generate_performance.generate_performance`.
+    folder : str or Path
+        Created if needed.
+    scan_unit : {'mm', 'cm', 'm', 'in'}, default 'mm'
+        Unit to store the scan (and the truth) in, to exercise unit handling.
+    marker_format : {'c3d', 'trc', 'csv'}, default 'c3d'
+    region_labels : (n,) int array, optional
+        Face region of each vertex, stored with the truth for per-region errors.
+    region_names : list of str, optional
+
+    Returns
+    -------
+    CaseFiles
+
+    Notes
+    -----
+    ``truth.npz`` holds ``vertices`` (T, n, 3) float32 in ``units``,
+    ``head_pose`` (T, 4, 4) (translation in ``units``), ``units``, ``rate``,
+    and the region arrays when given; read it with
+    :func:`facecap.report.evaluate_result.read_truth`.
+    """
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    scale = 1.0 / mm_per_unit(scan_unit)
+    scan_path = out / "scan.obj"
+    write_mesh(case.scan, scan_path, unit=scan_unit)
+    markers_path = out / f"take.{marker_format}"
+    write_markers(case.markers, markers_path)
+    map_path = out / "map.json"
+    atomic_write_text(map_path, json.dumps({k: int(v) for k, v in case.correspondence.items()}, indent=1))
+    truth_path = out / "truth.npz"
+    pose = np.array(case.head_pose, dtype=np.float64)
+    pose[:, :3, 3] *= scale
+    arrays = {
+        "vertices": (np.asarray(case.truth_vertices, dtype=np.float32) * np.float32(scale)),
+        "head_pose": pose,
+        "units": np.array(scan_unit),
+        "rate": np.array(case.markers.rate),
+    }
+    if region_labels is not None:
+        arrays["region_labels"] = np.asarray(region_labels)
+        arrays["region_names"] = np.array(region_names or [])
+    with atomic_path(truth_path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+    return CaseFiles(scan_path, markers_path, map_path, truth_path)

@@ -1,0 +1,418 @@
+"""Tests for facecap.io.read_markers: C3D (via ezc3d), TRC and facecap CSV."""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import ezc3d
+import numpy as np
+import pytest
+
+from facecap.errors import FileFormatError, InputError
+from facecap.io.read_markers import read_markers
+
+# --------------------------------------------------------------------------- helpers
+
+
+def _ezc3d_file(path, xyz, labels, rate, *, units="mm", residuals=None, first_frame=0, scale=-0.01):
+    """Write a float C3D with ezc3d itself (independent of facecap's writer).
+
+    xyz : (T, M, 3) in ``units``; residuals : (T, M), negative marks a gap.
+    """
+    T, M, _ = xyz.shape
+    c = ezc3d.c3d()
+    c["parameters"]["POINT"]["RATE"]["value"] = [float(rate)]
+    c["parameters"]["POINT"]["LABELS"]["value"] = list(labels)
+    c["parameters"]["POINT"]["UNITS"]["value"] = [units] if units else []
+    c["parameters"]["POINT"]["SCALE"]["value"] = [scale]
+    c["header"]["points"]["first_frame"] = first_frame
+    data = np.ones((4, M, T))
+    data[:3] = np.transpose(xyz, (2, 1, 0))
+    c["data"]["points"] = data
+    res = np.zeros((T, M)) if residuals is None else residuals
+    c["data"]["meta_points"] = {"residuals": res.T[None]}
+    c.write(str(path))
+    return path
+
+
+def _take(rng, T=12, M=4):
+    xyz = rng.uniform(-200.0, 200.0, size=(T, M, 3))
+    return xyz, [f"m{i}" for i in range(M)]
+
+
+def _int_c3d_bytes(counts, occluded, scale, labels, rate, unit):
+    """A minimal integer-format C3D built byte by byte from the C3D specification."""
+    T, M, _ = counts.shape
+
+    def group(name, gid):
+        return bytes([len(name), (-gid) & 0xFF]) + name.encode() + struct.pack("<h", 3) + b"\x00"
+
+    def param(name, gid, ptype, dims, payload):
+        body = struct.pack("<bB", ptype, len(dims)) + bytes(dims) + payload + b"\x00"
+        return bytes([len(name), gid]) + name.encode() + struct.pack("<h", 2 + len(body)) + body
+
+    width = max(len(s) for s in labels)
+    records = [
+        group("POINT", 1),
+        param("USED", 1, 2, (), struct.pack("<h", M)),
+        param("SCALE", 1, 4, (), struct.pack("<f", scale)),
+        param("RATE", 1, 4, (), struct.pack("<f", rate)),
+        param("FRAMES", 1, 2, (), struct.pack("<h", T)),
+        param("LABELS", 1, -1, (width, M), b"".join(s.ljust(width).encode() for s in labels)),
+        param("UNITS", 1, -1, (len(unit), 1), unit.encode()),
+    ]
+    section = bytearray([1, 0x50, 0, 84]) + b"".join(records) + b"\x00\x00"
+    n_blocks = -(-len(section) // 512)
+    section[2] = n_blocks
+    section += bytes(n_blocks * 512 - len(section))
+    data_start = 2 + n_blocks
+
+    header = bytearray(512)
+    header[0], header[1] = 2, 0x50
+    struct.pack_into("<5H", header, 2, M, 0, 1, T, 10)
+    struct.pack_into("<f", header, 12, scale)
+    struct.pack_into("<2H", header, 16, data_start, 0)
+    struct.pack_into("<f", header, 20, rate)
+
+    frames = bytearray()
+    for t in range(T):
+        for m in range(M):
+            if occluded[t, m]:
+                frames += struct.pack("<3hh", 0, 0, 0, -1)
+            else:
+                frames += struct.pack("<3hh", *counts[t, m].tolist(), 0)
+    return bytes(header) + bytes(section) + bytes(frames)
+
+
+def _assert_one_clear_line(exc_info, path):
+    err = exc_info.value
+    assert err.path == str(path)
+    assert "\n" not in str(err) and str(err).startswith(str(path) + ": ")
+
+
+# --------------------------------------------------------------------------- C3D
+
+
+def test_c3d_positions_labels_rate_unit_and_first_frame():
+    rng = np.random.default_rng(0)
+    xyz, labels = _take(rng)
+    with _tmp() as folder:
+        path = _ezc3d_file(folder / "take.c3d", xyz, labels, 120.0, units="cm", first_frame=41)
+        take = read_markers(path)
+    assert take.labels == tuple(labels)
+    assert take.rate == 120.0
+    assert take.source_unit == "cm"
+    assert take.first_frame == 41
+    assert take.source_path == str(path)
+    # C3D stores float32; the reader converts cm -> mm.
+    np.testing.assert_allclose(take.positions, xyz.astype(np.float32).astype(np.float64) * 10.0, rtol=0, atol=0)
+    assert take.positions.dtype == np.float64 and take.positions.flags.c_contiguous
+
+
+def test_c3d_gaps_from_negative_residual_and_from_all_zero_xyz(tmp_path):
+    rng = np.random.default_rng(1)
+    xyz, labels = _take(rng, T=10, M=3)
+    residuals = np.full((10, 3), 0.5 + 0.0025)  # ezc3d truncates to multiples of |POINT:SCALE| = 0.01
+    residuals[2, 1] = -1.0  # a C3D gap
+    xyz[5, 2] = 0.0  # how ezc3d and others store a gap they were given as NaN
+    xyz[7, 0] = [0.0, 0.0, 3.0]  # one zero coordinate is a real position, not a gap
+    path = _ezc3d_file(tmp_path / "gaps.c3d", xyz, labels, 60.0, units="mm", residuals=residuals)
+    take = read_markers(path)
+    expected_gaps = np.zeros((10, 3), bool)
+    expected_gaps[2, 1] = expected_gaps[5, 2] = True
+    np.testing.assert_array_equal(take.gap_mask, expected_gaps)
+    assert np.isnan(take.positions[expected_gaps]).all()
+    np.testing.assert_allclose(take.positions[7, 0], [0.0, 0.0, 3.0])
+    assert take.residuals.shape == (10, 3)
+    np.testing.assert_array_equal(np.isnan(take.residuals), expected_gaps)
+    np.testing.assert_allclose(take.residuals[~expected_gaps], 0.5, atol=1e-6)
+
+
+def test_c3d_residuals_are_converted_to_mm(tmp_path):
+    xyz = np.ones((3, 1, 3))
+    residuals = np.array([[0.0], [0.1], [0.25]]) + 0.00025  # in cm, |POINT:SCALE| = 0.001 cm steps
+    path = _ezc3d_file(tmp_path / "r.c3d", xyz, ["a"], 30.0, units="cm", residuals=residuals, scale=-0.001)
+    take = read_markers(path)
+    np.testing.assert_allclose(take.residuals[:, 0], [0.0, 1.0, 2.5], atol=1e-5)
+
+
+def test_c3d_unit_override_and_default_unit(tmp_path):
+    xyz = np.full((2, 1, 3), 1.5)
+    path = _ezc3d_file(tmp_path / "lying.c3d", xyz, ["a"], 100.0, units="mm")
+    take = read_markers(path, unit="m")
+    assert take.source_unit == "m"
+    np.testing.assert_allclose(take.positions, 1500.0)
+    blank = _ezc3d_file(tmp_path / "nounit.c3d", xyz, ["a"], 100.0, units=None)
+    take = read_markers(blank)
+    assert take.source_unit == "mm"
+    np.testing.assert_allclose(take.positions, 1.5)
+    weird = _ezc3d_file(tmp_path / "weird.c3d", xyz, ["a"], 100.0, units="furlong")
+    with pytest.raises(FileFormatError, match="POINT:UNITS.*furlong.*unit="):
+        read_markers(weird)
+    np.testing.assert_allclose(read_markers(weird, unit="cm").positions, 15.0)
+    with pytest.raises(InputError, match="unit"):
+        read_markers(path, unit="parsec")
+
+
+def test_c3d_more_than_255_labels_uses_labels2(tmp_path):
+    M = 300
+    xyz = np.arange(2 * M * 3, dtype=float).reshape(2, M, 3) + 1.0
+    labels = [f"marker_{i:03d}" for i in range(M)]
+    path = _ezc3d_file(tmp_path / "many.c3d", xyz, labels, 60.0)
+    assert "LABELS2" in ezc3d.c3d(str(path))["parameters"]["POINT"]  # the case under test
+    take = read_markers(path)
+    assert take.labels == tuple(labels)
+    np.testing.assert_allclose(take.positions, xyz)
+
+
+def test_c3d_integer_format_built_from_the_specification(tmp_path):
+    rng = np.random.default_rng(2)
+    counts = rng.integers(-3000, 3000, size=(6, 3, 3)).astype(np.int16)
+    occluded = np.zeros((6, 3), bool)
+    occluded[1, 2] = occluded[4, 0] = True
+    path = tmp_path / "int.c3d"
+    path.write_bytes(_int_c3d_bytes(counts, occluded, 0.05, ["a", "bb", "c"], 200.0, "cm"))
+    take = read_markers(path)
+    assert take.labels == ("a", "bb", "c")
+    assert take.rate == 200.0 and take.source_unit == "cm"
+    np.testing.assert_array_equal(take.gap_mask, occluded)
+    expected = counts.astype(np.float64) * np.float32(0.05) * 10.0
+    np.testing.assert_allclose(take.positions[~occluded], expected[~occluded], rtol=1e-6)
+
+
+def test_c3d_truncated_file_raises_instead_of_returning_fewer_frames(tmp_path):
+    rng = np.random.default_rng(3)
+    xyz, labels = _take(rng, T=200, M=5)
+    whole = _ezc3d_file(tmp_path / "whole.c3d", xyz, labels, 60.0).read_bytes()
+    header_words = struct.unpack_from("<10H", whole, 0)
+    data_end = (header_words[8] - 1) * 512 + 200 * 5 * 16
+    # ezc3d on its own reads such files silently, with fewer frames:
+    half = tmp_path / "half.c3d"
+    half.write_bytes(whole[: len(whole) // 2])
+    assert ezc3d.c3d(str(half))["data"]["points"].shape[2] < 200
+    for name, cut in [("half", len(whole) // 2), ("last_byte", data_end - 1), ("header_only", 600)]:
+        path = tmp_path / f"{name}.c3d"
+        path.write_bytes(whole[:cut])
+        with pytest.raises(FileFormatError, match="truncated") as info:
+            read_markers(path)
+        _assert_one_clear_line(info, path)
+    exact = tmp_path / "exact.c3d"  # cut right after the data: every frame is there
+    exact.write_bytes(whole[:data_end])
+    assert read_markers(exact).n_frames == 200
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (b"", "empty"),
+        (b"PathFileType\t4\n", "too short"),
+        (np.random.default_rng(4).bytes(4096), "not a C3D file"),
+        (b"\x02\x50" + bytes(510), "parameter section"),
+    ],
+    ids=["empty", "text", "random", "header_without_parameters"],
+)
+def test_c3d_garbage_raises_one_clear_error(tmp_path, content, message):
+    path = tmp_path / "bad.c3d"
+    path.write_bytes(content)
+    with pytest.raises(FileFormatError, match=message) as info:
+        read_markers(path)
+    _assert_one_clear_line(info, path)
+
+
+def test_c3d_corrupt_parameter_sections_never_crash(tmp_path):
+    # Unchecked, ezc3d segfaults or hangs on some of these (seen while developing);
+    # every one must either read or raise FileFormatError.
+    rng = np.random.default_rng(5)
+    xyz, labels = _take(rng, T=20, M=3)
+    whole = bytearray(_ezc3d_file(tmp_path / "src.c3d", xyz, labels, 60.0).read_bytes())
+    param_end = (struct.unpack_from("<H", whole, 16)[0] - 1) * 512
+    outcomes = {"read": 0, "rejected": 0}
+    for k in range(60):
+        b = bytearray(whole)
+        for _ in range(rng.integers(1, 4)):
+            b[rng.integers(512, param_end)] = rng.integers(0, 256)
+        path = tmp_path / f"fuzz{k}.c3d"
+        path.write_bytes(bytes(b))
+        try:
+            read_markers(path)
+            outcomes["read"] += 1
+        except FileFormatError as err:
+            assert err.path == str(path) and "\n" not in str(err)
+            outcomes["rejected"] += 1
+    assert outcomes["rejected"] > 0 and sum(outcomes.values()) == 60
+
+
+def test_c3d_inconsistent_header_is_rejected(tmp_path):
+    xyz = np.ones((4, 2, 3))
+    whole = bytearray(_ezc3d_file(tmp_path / "ok.c3d", xyz, ["a", "b"], 60.0).read_bytes())
+    more_points = bytearray(whole)
+    struct.pack_into("<H", more_points, 2, 3)  # header says 3 markers, POINT:USED says 2
+    (tmp_path / "points.c3d").write_bytes(bytes(more_points))
+    with pytest.raises(FileFormatError, match="POINT:USED"):
+        read_markers(tmp_path / "points.c3d")
+    inverted = bytearray(whole)
+    struct.pack_into("<2H", inverted, 6, 9, 3)  # first frame 9, last frame 3
+    (tmp_path / "frames.c3d").write_bytes(bytes(inverted))
+    with pytest.raises(FileFormatError, match="inverted"):
+        read_markers(tmp_path / "frames.c3d")
+
+
+# --------------------------------------------------------------------------- TRC
+
+_TRC = (
+    "PathFileType\t4\t(X/Y/Z)\ttake.trc\n"
+    "DataRate\tCameraRate\tNumFrames\tNumMarkers\tUnits\tOrigDataRate\tOrigDataStartFrame\tOrigNumFrames\n"
+    "50.00\t50.00\t3\t2\tcm\t50.00\t11\t3\n"
+    "Frame#\tTime\tBrow L\t\t\tNose\t\t\n"
+    "\t\tX1\tY1\tZ1\tX2\tY2\tZ2\n"
+    "\n"
+    "11\t0.200\t1\t2\t3\t4\t5\t6\n"
+    "12\t0.220\t1.5\t2.5\t3.5\t\t\t\n"
+    "13\t0.240\t2\t3\t4\t7\t8\t9\n"
+)
+
+
+def test_trc_reads_header_names_gaps_and_converts_to_mm(tmp_path):
+    path = tmp_path / "take.trc"
+    path.write_text(_TRC)
+    take = read_markers(path)
+    assert take.labels == ("Brow L", "Nose")
+    assert take.rate == 50.0 and take.source_unit == "cm"
+    assert take.first_frame == 10  # Frame# 11 counted from 1
+    assert take.residuals is None
+    expected = np.array(
+        [[[1, 2, 3], [4, 5, 6]], [[1.5, 2.5, 3.5], [np.nan] * 3], [[2, 3, 4], [7, 8, 9]]]
+    ) * 10.0
+    np.testing.assert_array_equal(take.positions, expected)
+    assert read_markers(path, unit="mm").positions[0, 0].tolist() == [1.0, 2.0, 3.0]
+
+
+def test_trc_suffix_is_case_insensitive_and_crlf_is_fine(tmp_path):
+    path = tmp_path / "TAKE.TRC"
+    path.write_bytes(_TRC.replace("\n", "\r\n").encode())
+    assert read_markers(path).n_frames == 3
+
+
+@pytest.mark.parametrize(
+    "old, new, message",
+    [
+        ("13\t0.240\t2\t3\t4\t7\t8\t9\n", "13\t0.240\t2\t3\t4\t7\n", "line 9: 6 tab-separated values, expected 8"),
+        ("50.00\t50.00\t3\t2", "50.00\t50.00\t4\t2", "NumFrames=4 but the file holds 3 data rows"),
+        ("50.00\t50.00\t3\t2", "50.00\t50.00\t3\t3", "line 4 names 2 markers but the header .* NumMarkers=3"),
+        ("50.00\t50.00\t3", "100.0\t50.00\t3", "Time column spans 0.04 s .* DataRate=100 Hz"),
+        ("12\t0.220\t1.5", "12\t0.220\tabc", "line 8, column 3: expected a number, got 'abc'"),
+        ("13\t0.240", "14\t0.240", "line 9: Frame# 14 does not follow 12"),
+        ("\tcm\t", "\tfurlong\t", "Units gives unit 'furlong'"),
+        ("13\t0.240\t2\t3\t4\t7\t8\t9\n", "13\t0.240\t2\t3\t4\t7\t8\t9\t10\n", "line 9: 9 values, more than the 8"),
+        ("PathFileType", "PathType", "not a TRC file"),
+    ],
+    ids=["short_row", "numframes", "nummarkers", "datarate", "not_a_number", "frame_gap", "unit", "long_row", "magic"],
+)
+def test_trc_errors_name_the_line(tmp_path, old, new, message):
+    assert old in _TRC
+    path = tmp_path / "bad.trc"
+    path.write_text(_TRC.replace(old, new, 1))
+    with pytest.raises(FileFormatError, match=message) as info:
+        read_markers(path)
+    _assert_one_clear_line(info, path)
+
+
+def test_trc_blank_padded_rows_are_gaps_not_errors(tmp_path):
+    text = _TRC.replace("13\t0.240\t2\t3\t4\t7\t8\t9\n", "13\t0.240\t2\t3\t4\t\t\t\t\n")
+    path = tmp_path / "padded.trc"
+    path.write_text(text)
+    assert read_markers(path).gap_mask[2].tolist() == [False, True]
+
+
+# --------------------------------------------------------------------------- CSV
+
+_CSV = (
+    "# exported by hand\n"
+    "# rate=120\n"
+    "# unit=cm\n"
+    "frame,time,Chin_L1_x,Chin_L1_y,Chin_L1_z,nose_x,nose_y,nose_z\n"
+    "5,0.0,1,2,3,,,\n"
+    "6,0.008333,4,5,6,7,8,9\n"
+)
+
+
+def test_csv_reads_comments_labels_with_underscores_and_gaps(tmp_path):
+    path = tmp_path / "take.csv"
+    path.write_text(_CSV)
+    take = read_markers(path)
+    assert take.labels == ("Chin_L1", "nose")
+    assert take.rate == 120.0 and take.source_unit == "cm" and take.first_frame == 5
+    expected = np.array([[[1, 2, 3], [np.nan] * 3], [[4, 5, 6], [7, 8, 9]]]) * 10.0
+    np.testing.assert_array_equal(take.positions, expected)
+
+
+def test_csv_rate_inferred_from_time_and_unit_defaults_to_mm(tmp_path):
+    times = np.arange(5) / 240.0
+    rows = "\n".join(f"{i},{t:.6f},{i},0,0" for i, t in enumerate(times))
+    path = tmp_path / "plain.csv"
+    path.write_text(f"frame,time,a_x,a_y,a_z\n{rows}\n")
+    take = read_markers(path)
+    assert take.source_unit == "mm"
+    assert take.rate == 240.0  # 1 / mean step is 239.995 from the 6-decimal rounding
+    assert read_markers(path, unit="in").positions[4, 0, 0] == pytest.approx(4 * 25.4)
+    odd = np.arange(100) / 59.94  # an NTSC rate written exactly is not rounded to 60
+    rows = "\n".join(f"{i},{t!r},0,0,0" for i, t in enumerate(odd.tolist()))
+    path.write_text(f"frame,time,a_x,a_y,a_z\n{rows}\n")
+    assert math.isclose(read_markers(path).rate, 59.94, rel_tol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("frame,time,a_x,a_y\n0,0,1,2\n", "three columns"),
+        ("frame,time,a_x,b_y,a_z\n0,0,1,2,3\n", "columns 3-5: expected <label>_x"),
+        ("# rate=10\nframe,time,a_x,a_y,a_z\n0,0,1,2\n", "line 3: 4 values, expected 5"),
+        ("frame,time,a_x,a_y,a_z\n0,0,1,2,3\n1,0.1,1,2,3\n2,0.5,1,2,3\n", "line 3: the time column is not evenly"),
+        ("frame,time,a_x,a_y,a_z\n0,0,1,2,3\n", "single frame"),
+        ("# rate=fast\nframe,time,a_x,a_y,a_z\n0,0,1,2,3\n", "line 1: rate 'fast'"),
+        ("# rate=10\nframe,time,a_x,a_y,a_z,a_x,a_y,a_z\n0,0,1,2,3,4,5,6\n", "duplicate marker labels \\['a'\\]"),
+        ("# only comments\n", "no header row"),
+        ("time,frame,a_x,a_y,a_z\n", "must start with 'frame,time'"),
+    ],
+    ids=["columns", "triple", "row_width", "uneven_time", "one_frame", "rate", "duplicate", "no_header", "order"],
+)
+def test_csv_errors(tmp_path, text, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(FileFormatError, match=message) as info:
+        read_markers(path)
+    _assert_one_clear_line(info, path)
+
+
+# --------------------------------------------------------------------------- dispatch
+
+
+def test_unknown_suffix_missing_file_and_binary_text(tmp_path):
+    with pytest.raises(FileFormatError, match="suffix '.bvh'"):
+        read_markers(tmp_path / "take.bvh")
+    with pytest.raises(FileFormatError, match="file not found") as info:
+        read_markers(tmp_path / "missing.c3d")
+    _assert_one_clear_line(info, tmp_path / "missing.c3d")
+    (tmp_path / "bin.csv").write_bytes(b"\x00\x01\x02frame")
+    with pytest.raises(FileFormatError, match="binary"):
+        read_markers(tmp_path / "bin.csv")
+    (tmp_path / "empty.trc").write_text("  \n")
+    with pytest.raises(FileFormatError, match="empty"):
+        read_markers(tmp_path / "empty.trc")
+    (tmp_path / "dir.csv").mkdir()
+    with pytest.raises(FileFormatError, match="not a regular file"):
+        read_markers(tmp_path / "dir.csv")
+
+
+# A tiny context manager so the first test shows the plain-folder use too.
+class _tmp:
+    def __enter__(self):
+        import tempfile
+        from pathlib import Path
+
+        self._d = tempfile.TemporaryDirectory()
+        return Path(self._d.name)
+
+    def __exit__(self, *exc):
+        self._d.cleanup()
