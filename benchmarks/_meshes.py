@@ -115,6 +115,7 @@ def _largest_piece(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return np.ascontiguousarray(V[used]), np.ascontiguousarray(remap[Fk])
 
 
+@lru_cache(maxsize=1)
 def bench_mesh(case: str) -> BenchMesh:
     """Build the benchmark mesh for ``case`` in {'100k', '300k', '700k'} (see module docstring)."""
     if case == "100k":

@@ -89,3 +89,17 @@ def test_too_few_or_coplanar_markers_are_rejected():
     flat[:, 2] = 0.0
     with pytest.raises(MarkerError, match="coplanar"):
         TriharmonicWarp(flat, flat)
+
+
+def test_markers_on_a_quadric_fall_back_to_affine_and_stay_exact():
+    # a sheet of markers exactly on a paraboloid leaves the quadratic term undetermined
+    rng = np.random.default_rng(7)
+    xy = rng.uniform(-60, 60, size=(40, 2))
+    m = np.column_stack([xy, -0.006 * xy[:, 0] ** 2 - 0.003 * xy[:, 1] ** 2])
+    from scipy.spatial.transform import Rotation
+
+    R = Rotation.from_rotvec([0.2, -0.4, 0.1]).as_matrix()
+    warp = TriharmonicWarp(m @ R.T + [100.0, 1400.0, -30.0], m)
+    assert warp.degree == 1
+    off_surface = m + rng.normal(scale=5.0, size=m.shape)
+    np.testing.assert_allclose(warp(off_surface @ R.T + [100.0, 1400.0, -30.0]), off_surface, atol=1e-6)

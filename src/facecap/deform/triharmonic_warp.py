@@ -36,8 +36,12 @@ class TriharmonicWarp:
 
     Notes
     -----
-    With fewer than 10 markers the quadratic term is under-determined, so the
-    polynomial falls back to affine (degree 1). Solved by
+    With fewer than 10 markers, or markers lying on (or within numerical noise
+    of) a quadric surface, the quadratic term is not determined by the markers:
+    a sheet of markers on a paraboloid leaves the polynomial free in the
+    direction off the surface, and the warp would extrapolate arbitrarily. The
+    polynomial then falls back to affine (degree 1), which still reproduces
+    rigid and affine motion exactly; ``degree`` records the choice. Solved by
     :class:`scipy.interpolate.RBFInterpolator` with ``kernel='cubic'`` (which is
     ``r^3``) and ``smoothing=0``, i.e. exact interpolation.
 
@@ -71,7 +75,7 @@ class TriharmonicWarp:
         centred = self.sources - self.sources.mean(axis=0)
         if np.linalg.matrix_rank(centred, tol=1e-6 * max(np.abs(centred).max(), 1e-12)) < 3:
             raise MarkerError("the rest-frame markers are coplanar or collinear: no 3D warp is defined")
-        self.degree = 2 if k >= _QUADRATIC_MIN_POINTS else 1
+        self.degree = 2 if k >= _QUADRATIC_MIN_POINTS and _quadratic_is_determined(self.sources) else 1
         try:
             self._rbf = RBFInterpolator(self.sources, self.targets, kernel="cubic", degree=self.degree)
         except (ValueError, np.linalg.LinAlgError) as exc:
@@ -111,7 +115,7 @@ class TriharmonicWarp:
         residuals = np.full(k, np.nan)
         if k <= 4:
             return residuals
-        degree = 2 if k - 1 >= _QUADRATIC_MIN_POINTS else 1
+        degree = self.degree if k - 1 >= _QUADRATIC_MIN_POINTS else 1
         keep = np.ones(k, dtype=bool)
         for i in range(k):
             keep[i] = False
@@ -122,3 +126,13 @@ class TriharmonicWarp:
                 pass
             keep[i] = True
         return residuals
+
+
+def _quadratic_is_determined(points: FloatArray, *, rcond: float = 1e-6) -> bool:
+    """Whether the 10 quadratic monomials are linearly independent on ``points``."""
+    X = points - points.mean(axis=0)
+    X = X / max(float(np.abs(X).max()), 1e-300)
+    x, y, z = X.T
+    P = np.stack([np.ones_like(x), x, y, z, x * x, y * y, z * z, x * y, x * z, y * z], axis=1)
+    s = np.linalg.svd(P, compute_uv=False)
+    return bool(s[-1] > rcond * s[0])

@@ -1,0 +1,452 @@
+"""Speed and memory of the large-scale step (Bickel et al. 2007, sec. 4.2): thin-shell set-up and per-frame deformation.
+
+One configuration per run, in a fresh process, printing one ``RESULT {json}`` line::
+
+    python benchmarks/bench_thin_shell.py --case 700k --mode speed --frames 1000
+    python benchmarks/bench_thin_shell.py --case 700k --mode stream --frames 10000 --sink null
+    python benchmarks/bench_thin_shell.py --case 100k --mode setup --backend scipy
+
+or the whole set, each configuration in its own subprocess, ending with markdown tables::
+
+    python benchmarks/bench_thin_shell.py --all [--save results.json]
+
+Modes
+-----
+speed
+    ``ThinShellSolver(..., keep_factor=True)`` once, then, ``--repeats`` times:
+    batched ``deform_into`` over all frames (compute only, preallocated output,
+    batch 16/32/64); ``solve_direct`` (sparse back-substitution with the kept
+    factor) on ``--direct-frames`` frames, the ratio taken against the batch-32
+    run of the same repeat; and the streamed loop of ``animate_scan`` (same
+    code: two buffers, one writer thread, ``PerformanceWriter``) writing a real
+    ``vertices.npy``. Outputs are deleted after each repeat.
+stream
+    The real :func:`facecap.deform.animate_scan.animate_scan` on a synthetic
+    take (markers at their vertices plus the smooth motion, vertex-index
+    correspondence), then ``ru_maxrss`` of the process: the peak memory of a
+    whole take. ``--sink null`` opens ``vertices.npy`` on ``/dev/null`` (every
+    byte still goes through ``write``), for takes too large for the disk.
+setup
+    Only the solver construction: time and ``ru_maxrss`` (for backends).
+
+Every figure comes with the CPU time that other processes took while it was
+measured (``other_cores``: busy CPU time of the machine from ``/proc/stat`` minus
+this process's own, per second of wall time), since this 2-core machine is shared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _meshes  # noqa: E402
+
+N_MARKERS = 90
+RATE_HZ = 60.0
+GB = 1e9
+
+
+# --------------------------------------------------------------------------- measuring
+
+
+def _busy_jiffies() -> int:
+    with open("/proc/stat") as f:
+        fields = [int(x) for x in f.readline().split()[1:]]
+    user, nice, system, idle, iowait, irq, softirq, steal = fields[:8]
+    return user + nice + system + irq + softirq + steal
+
+
+class Window:
+    """Wall time of a block, plus the CPU (in cores) other processes used meanwhile."""
+
+    def __enter__(self) -> "Window":
+        self._hz = os.sysconf("SC_CLK_TCK")
+        t = os.times()
+        self._mine = t.user + t.system
+        self._busy = _busy_jiffies()
+        self._t = time.perf_counter()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.seconds = time.perf_counter() - self._t
+        t = os.times()
+        mine = t.user + t.system - self._mine
+        busy = (_busy_jiffies() - self._busy) / self._hz
+        self.my_cores = mine / max(self.seconds, 1e-9)
+        self.other_cores = max(busy - mine, 0.0) / max(self.seconds, 1e-9)
+
+
+def _peak_rss_gb() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / GB  # Linux: KiB
+
+
+def _median(xs: list[float]) -> float:
+    return float(statistics.median(xs))
+
+
+# --------------------------------------------------------------------------- inputs
+
+
+def _inputs(case: str, frames: int) -> tuple[_meshes.BenchMesh, np.ndarray, np.ndarray]:
+    mesh = _meshes.bench_mesh(case)
+    markers = _meshes.farthest_point_markers(mesh.V, N_MARKERS)
+    motion = _meshes.smooth_marker_motion(frames, N_MARKERS, rate_hz=RATE_HZ, seed=0)
+    return mesh, markers, motion
+
+
+def _build_solver(mesh: _meshes.BenchMesh, markers: np.ndarray, **kw: Any) -> tuple[Any, Window]:
+    from facecap.deform.thin_shell import ThinShellSolver
+
+    with Window() as w:
+        solver = ThinShellSolver(mesh.V, mesh.F, markers, **kw)
+    return solver, w
+
+
+# --------------------------------------------------------------------------- the streamed loop
+
+
+def stream_frames(solver: Any, writer: Any, disp32: np.ndarray, rest32: np.ndarray, batch: int) -> None:
+    """The deform-and-write loop of ``animate_scan`` (two buffers, one writer thread), verbatim in substance."""
+    T, n = disp32.shape[0], rest32.shape[0]
+    buffers = [np.empty((min(batch, T), n, 3), np.float32) for _ in range(2)]
+    pending: list[Any] = [None, None]
+    with ThreadPoolExecutor(max_workers=1) as pool:
+        for k, start in enumerate(range(0, T, batch)):
+            stop = min(start + batch, T)
+            slot = k % 2
+            if pending[slot] is not None:
+                pending[slot].result()
+            out = buffers[slot][: stop - start]
+            solver.deform_into(disp32[start:stop], rest32, out)
+            pending[slot] = pool.submit(writer.write_frames, start, out)
+        for p in pending:
+            if p is not None:
+                p.result()
+
+
+def _scan(mesh: _meshes.BenchMesh) -> Any:
+    from facecap.structures import Mesh
+
+    return Mesh(mesh.V, mesh.F, source_unit="mm", source_path=f"bench:{len(mesh.V)}")
+
+
+def _null_sink() -> None:
+    """Make PerformanceWriter open vertices.npy on /dev/null (the bytes still go through write())."""
+    from facecap.io import write_performance
+
+    base = write_performance._NpyStream
+
+    class _NullNpyStream(base):  # type: ignore[misc, valid-type]
+        def __init__(self, path: Path, shape: tuple[int, ...], dtype: np.dtype) -> None:
+            super().__init__(Path(os.devnull), shape, dtype)
+
+    write_performance._NpyStream = _NullNpyStream
+
+
+# --------------------------------------------------------------------------- modes
+
+
+def run_speed(args: argparse.Namespace) -> dict[str, Any]:
+    from facecap.io.write_performance import PerformanceWriter
+
+    mesh, markers, motion = _inputs(args.case, args.frames)
+    solver, w_setup = _build_solver(mesh, markers, keep_factor=True)
+    n, T = len(mesh.V), args.frames
+    disp32 = motion.astype(np.float32)
+    rest32 = mesh.V.astype(np.float32)
+    batches = [int(b) for b in args.batches.split(",")]
+    out_root = Path(tempfile.mkdtemp(prefix="facecap-bench-", dir=args.out_dir))
+    scan = _scan(mesh)
+
+    # accuracy sanity: the dense basis against the sparse solve, one frame
+    ref = solver.solve_direct(motion[T // 2])
+    fast = solver.displacements(disp32[T // 2]).astype(np.float64)
+    max_err_mm = float(np.abs(ref - fast).max())
+
+    compute: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
+    direct: list[dict[str, float]] = []
+    ratios: list[float] = []
+    e2e: list[dict[str, float]] = []
+    per_rep_direct = max(1, round(args.direct_frames / args.repeats))
+    for rep in range(args.repeats):
+        for b in batches:
+            out = np.empty((b, n, 3), np.float32)
+            solver.deform_into(disp32[:b], rest32, out)  # warm the buffer's pages
+            with Window() as w:
+                for start in range(0, T, b):
+                    stop = min(start + b, T)
+                    solver.deform_into(disp32[start:stop], rest32, out[: stop - start])
+            compute[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
+            del out
+        frames = range(rep * per_rep_direct, (rep + 1) * per_rep_direct)
+        with Window() as w:
+            for t in frames:
+                solver.solve_direct(motion[t])
+        s_per_frame = w.seconds / per_rep_direct
+        direct.append({"s_per_frame": s_per_frame, "other_cores": w.other_cores})
+        ref_b = 32 if 32 in batches else batches[0]
+        ratios.append(compute[ref_b][-1]["fps"] * s_per_frame)
+        if not args.no_write:
+            dest = out_root / f"take{rep}"
+            with Window() as w:
+                with PerformanceWriter(dest, mesh=scan, rate=RATE_HZ, n_frames=T) as writer:
+                    stream_frames(solver, writer, disp32, rest32, args.batch)
+                    writer.finish({"benchmark": True})
+            with Window() as w_sync:
+                os.sync()
+            size = (dest / "vertices.npy").stat().st_size
+            e2e.append({
+                "fps": T / w.seconds, "fps_incl_sync": T / (w.seconds + w_sync.seconds),
+                "other_cores": w.other_cores, "write_gb": size / GB,
+                "MBps": size / w.seconds / 1e6, "MBps_incl_sync": size / (w.seconds + w_sync.seconds) / 1e6,
+            })
+            shutil.rmtree(dest)
+    shutil.rmtree(out_root, ignore_errors=True)
+    res: dict[str, Any] = {
+        "setup_s": w_setup.seconds, "setup_other_cores": w_setup.other_cores,
+        "max_err_dense_vs_sparse_mm": max_err_mm,
+        "compute": {str(b): v for b, v in compute.items()},
+        "compute_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in compute.items()},
+        "direct": direct, "direct_s_per_frame_median": _median([d["s_per_frame"] for d in direct]),
+        "direct_frames_total": per_rep_direct * args.repeats,
+        "speedup": ratios, "speedup_median": _median(ratios),
+        "e2e": e2e,
+    }
+    if e2e:
+        res["e2e_fps_median"] = _median([e["fps"] for e in e2e])
+        res["e2e_fps_incl_sync_median"] = _median([e["fps_incl_sync"] for e in e2e])
+    return res
+
+
+def run_stream(args: argparse.Namespace) -> dict[str, Any]:
+    import warnings
+
+    from facecap.deform.animate_scan import animate_scan
+    from facecap.io.read_correspondence import Correspondence
+    from facecap.structures import MarkerSequence
+
+    if args.sink == "null":
+        _null_sink()
+    mesh, markers, motion = _inputs(args.case, args.frames)
+    labels = tuple(f"M{k:03d}" for k in range(N_MARKERS))
+    take = MarkerSequence(mesh.V[markers][None] + motion, labels, RATE_HZ)
+    corr = Correspondence(labels, np.repeat(markers[:, None], 3, axis=1), np.tile([1.0, 0.0, 0.0], (N_MARKERS, 1)))
+    rss_inputs = _peak_rss_gb()
+    out_root = Path(tempfile.mkdtemp(prefix="facecap-bench-", dir=args.out_dir))
+    dest = out_root / "take"
+    with Window() as w, warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = animate_scan(_scan(mesh), take, corr, dest, batch_frames=args.batch, progress=False)
+    size = (dest / "vertices.npy").stat().st_size if (dest / "vertices.npy").exists() else 0
+    peak = _peak_rss_gb()
+    shutil.rmtree(out_root, ignore_errors=True)
+    timings = result.report["timings"]
+    return {
+        "sink": args.sink, "peak_rss_gb": peak, "peak_rss_inputs_gb": rss_inputs,
+        "vertices_npy_gb": size / GB, "streamed_gb": args.frames * len(mesh.V) * 12 / GB,
+        "wall_s": w.seconds, "other_cores": w.other_cores, "timings": timings,
+        "setup_s": timings["shell_setup_s"], "e2e_fps": timings["frames_per_second"],
+    }
+
+
+def run_setup(args: argparse.Namespace) -> dict[str, Any]:
+    mesh, markers, _ = _inputs(args.case, 1)
+    rss0 = _peak_rss_gb()
+    solver, w = _build_solver(mesh, markers, backend=args.backend)
+    return {"backend": solver.backend, "setup_s": w.seconds, "other_cores": w.other_cores,
+            "peak_rss_gb": _peak_rss_gb(), "peak_rss_inputs_gb": rss0}
+
+
+def run_one(args: argparse.Namespace) -> dict[str, Any]:
+    t0 = time.perf_counter()
+    load0 = os.getloadavg()
+    mesh = _meshes.bench_mesh(args.case)
+    res = {"speed": run_speed, "stream": run_stream, "setup": run_setup}[args.mode](args)
+    return {
+        "case": args.case, "mode": args.mode, "frames": args.frames, "batch": args.batch,
+        "n_vertices": len(mesh.V), "n_triangles": len(mesh.F), "mesh": mesh.description,
+        "loadavg_start": load0, "loadavg_end": os.getloadavg(),
+        "process_s": time.perf_counter() - t0, **res,
+    }
+
+
+# --------------------------------------------------------------------------- driver
+
+
+def machine_facts() -> dict[str, Any]:
+    import importlib.metadata as md
+
+    facts: dict[str, Any] = {}
+    with open("/proc/cpuinfo") as f:
+        for line in f:
+            if line.startswith("model name"):
+                facts["cpu"] = line.split(":", 1)[1].strip()
+                break
+    with open("/proc/cpuinfo") as f:
+        flags = next((ln.split(":", 1)[1].split() for ln in f if ln.startswith("flags")), [])
+    facts["simd"] = " ".join(x for x in ("avx2", "fma", "avx512f") if x in flags)
+    facts["cores"] = os.cpu_count()
+    with open("/proc/meminfo") as f:
+        facts["ram_gb"] = round(int(f.readline().split()[1]) * 1024 / GB, 1)
+    cfg = np.show_config(mode="dicts")
+    blas = cfg["Build Dependencies"]["blas"]
+    facts["numpy"] = np.__version__
+    facts["numpy_blas"] = f"{blas['name']} {blas.get('version', '')}".strip()
+    for pkg in ("scipy", "pypardiso", "mkl", "libigl"):
+        try:
+            facts[pkg] = md.version(pkg)
+        except md.PackageNotFoundError:
+            facts[pkg] = "not installed"
+    facts["python"] = sys.version.split()[0]
+    facts["loadavg"] = os.getloadavg()
+    return facts
+
+
+def disk_speed(out_dir: str | None, gib: int = 2) -> dict[str, float]:
+    """``dd`` write speed, once to the page cache and once with ``conv=fdatasync``."""
+    folder = Path(tempfile.mkdtemp(prefix="facecap-dd-", dir=out_dir))
+    res: dict[str, float] = {}
+    try:
+        for name, extra in (("dd_cached_MBps", []), ("dd_fdatasync_MBps", ["conv=fdatasync"])):
+            target = folder / "dd.bin"
+            t = time.perf_counter()
+            subprocess.run(["dd", "if=/dev/zero", f"of={target}", "bs=8M", f"count={128 * gib}", *extra],
+                           check=True, capture_output=True)
+            res[name] = gib * 1024**3 / (time.perf_counter() - t) / 1e6
+            target.unlink()
+            os.sync()
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    return res
+
+
+CONFIGS: list[list[str]] = [
+    ["--case", "100k", "--mode", "setup", "--backend", "pardiso"],
+    ["--case", "100k", "--mode", "setup", "--backend", "scipy"],
+    *[["--case", c, "--mode", "speed", "--frames", "1000"] for c in _meshes.CASES],
+    *[["--case", c, "--mode", "stream", "--frames", "1000"] for c in _meshes.CASES],
+    ["--case", "100k", "--mode", "stream", "--frames", "10000"],
+    ["--case", "700k", "--mode", "stream", "--frames", "10000", "--sink", "null"],
+]
+
+
+def run_all(args: argparse.Namespace) -> list[dict[str, Any]]:
+    facts = machine_facts()
+    print("machine:", json.dumps(facts), flush=True)
+    disk = disk_speed(args.out_dir)
+    print("disk:", json.dumps(disk), flush=True)
+    results = []
+    for cfg in CONFIGS:
+        cmd = [sys.executable, __file__, *cfg, "--repeats", str(args.repeats)]
+        if args.out_dir:
+            cmd += ["--out-dir", args.out_dir]
+        print("$", " ".join(cmd[1:]), flush=True)
+        proc = subprocess.run(cmd, capture_output=True, text=True)
+        line = next((ln for ln in reversed(proc.stdout.splitlines()) if ln.startswith("RESULT ")), None)
+        if proc.returncode or line is None:
+            print(proc.stdout[-2000:], proc.stderr[-4000:], flush=True)
+            results.append({"config": cfg, "error": proc.stderr[-1000:]})
+            continue
+        r = json.loads(line[7:])
+        print("  ", _short(r), flush=True)
+        results.append(r)
+    payload = {"machine": facts, "disk": disk, "results": results}
+    if args.save:
+        Path(args.save).write_text(json.dumps(payload, indent=1))
+    print()
+    print(markdown(payload))
+    return results
+
+
+def _short(r: dict[str, Any]) -> str:
+    keys = ("setup_s", "compute_fps_median", "speedup_median", "e2e_fps_median", "e2e_fps", "peak_rss_gb", "process_s")
+    return json.dumps({k: r[k] for k in keys if k in r})
+
+
+def markdown(payload: dict[str, Any]) -> str:
+    """The tables of RESULTS_thin_shell.md from a saved payload."""
+    m, disk, rs = payload["machine"], payload["disk"], [r for r in payload["results"] if "error" not in r]
+    L = []
+    L.append(f"Machine: {m['cpu']} ({m['simd']}), {m['cores']} cores, {m['ram_gb']} GB RAM; Python {m['python']}, "
+             f"numpy {m['numpy']} ({m['numpy_blas']}), scipy {m['scipy']}, pypardiso {m['pypardiso']} "
+             f"(MKL {m['mkl']}), libigl {m['libigl']}. Disk (dd, 2 GiB of 8 MiB blocks): "
+             f"{disk['dd_fdatasync_MBps']:.0f} MB/s with fdatasync, {disk['dd_cached_MBps']:.0f} MB/s into the page cache.")
+    L.append("")
+    speed = {r["case"]: r for r in rs if r["mode"] == "speed"}
+    stream = {(r["case"], r["frames"], r["sink"]): r for r in rs if r["mode"] == "stream"}
+    setups = {r["backend"]: r for r in rs if r["mode"] == "setup"}
+    L.append("| mesh | vertices | set-up s | compute fps b=16 | b=32 | b=64 | solve_direct s/frame | speed-up (b=32) "
+             "| end-to-end fps (write) | incl. sync | peak RSS 1000 frames GB | other load, cores |")
+    L.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for case in _meshes.CASES:
+        s = speed.get(case)
+        if s is None:
+            continue
+        st = stream.get((case, 1000, "file"))
+        setup_all = [s["setup_s"]] + [r["setup_s"] for k, r in stream.items() if k[0] == case]
+        cf = s["compute_fps_median"]
+        others = [x["other_cores"] for v in s["compute"].values() for x in v]
+        L.append(
+            f"| {case} | {s['n_vertices']:,} | {_median(setup_all):.1f} (n={len(setup_all)}) | "
+            f"{cf.get('16', float('nan')):.0f} | {cf.get('32', float('nan')):.0f} | {cf.get('64', float('nan')):.0f} | "
+            f"{s['direct_s_per_frame_median']:.3f} | {s['speedup_median']:.0f}x | "
+            f"{s.get('e2e_fps_median', float('nan')):.0f} | {s.get('e2e_fps_incl_sync_median', float('nan')):.0f} | "
+            f"{st['peak_rss_gb'] if st else float('nan'):.2f} | {min(others):.2f}-{max(others):.2f} |"
+        )
+    L.append("")
+    L.append("| take | sink | streamed GB | animate_scan fps | set-up s | peak RSS GB | other load, cores |")
+    L.append("|---|---|---|---|---|---|---|")
+    for (case, frames, sink), r in sorted(stream.items(), key=lambda kv: (kv[0][1], kv[0][0])):
+        L.append(f"| {case} x {frames:,} frames | {'/dev/null' if sink == 'null' else 'vertices.npy'} | "
+                 f"{r['streamed_gb']:.1f} | {r['e2e_fps']:.0f} | {r['setup_s']:.1f} | {r['peak_rss_gb']:.2f} | "
+                 f"{r['other_cores']:.2f} |")
+    if setups:
+        L.append("")
+        L.append("| 100k set-up backend | set-up s | peak RSS GB |")
+        L.append("|---|---|---|")
+        for name, r in setups.items():
+            L.append(f"| {name} | {r['setup_s']:.1f} | {r['peak_rss_gb']:.2f} |")
+    return "\n".join(L)
+
+
+def main(argv: list[str] | None = None) -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--all", action="store_true", help="run every configuration in its own subprocess")
+    p.add_argument("--case", choices=_meshes.CASES, default="100k")
+    p.add_argument("--mode", choices=("speed", "stream", "setup"), default="speed")
+    p.add_argument("--frames", type=int, default=1000)
+    p.add_argument("--batch", type=int, default=32, help="frames per deform_into call in the streamed loop")
+    p.add_argument("--batches", default="16,32,64", help="batch sizes of the compute-only measurement")
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--direct-frames", type=int, default=21, help="solve_direct frames, split over the repeats")
+    p.add_argument("--sink", choices=("file", "null"), default="file")
+    p.add_argument("--backend", choices=("auto", "pardiso", "scipy"), default="auto")
+    p.add_argument("--no-write", action="store_true", help="speed mode: skip the end-to-end writes")
+    p.add_argument("--out-dir", default=None, help="where outputs go (default: the system temp folder)")
+    p.add_argument("--save", default=None, help="--all: save the raw results as JSON here")
+    p.add_argument("--markdown", default=None, help="print the tables of a saved JSON and exit")
+    args = p.parse_args(argv)
+    if args.markdown:
+        print(markdown(json.loads(Path(args.markdown).read_text())))
+    elif args.all:
+        run_all(args)
+    else:
+        print("RESULT " + json.dumps(run_one(args)), flush=True)
+
+
+if __name__ == "__main__":
+    main()

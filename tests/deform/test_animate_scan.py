@@ -1,0 +1,139 @@
+import json
+
+import numpy as np
+import pytest
+
+from facecap.deform import animate_scan as animate_module
+from facecap.deform.animate_scan import animate_scan
+from facecap.errors import InputError, MarkerError
+from facecap.io import read_correspondence, read_markers, read_mesh
+from facecap.structures import MarkerSequence
+
+
+def _run(case, out, **kwargs):
+    scan = read_mesh(case.scan_path)
+    take = read_markers(case.markers_path)
+    corr = read_correspondence(case.map_path, scan)
+    kwargs.setdefault("progress", False)
+    with pytest.warns(Warning) if False else _nothing():
+        pass
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # head-band markers not in the map: expected notice
+        return animate_scan(scan, take, corr, out, **kwargs)
+
+
+class _nothing:
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *a):
+        return False
+
+
+def test_markers_are_reproduced_and_output_is_streamed(capture_case, tmp_path):
+    out = tmp_path / "result"
+    result = _run(capture_case, out, smooth=False)
+    V = np.load(out / "vertices.npy", mmap_mode="r")
+    assert isinstance(V, np.memmap) and V.dtype == np.float32
+    assert V.shape == capture_case.truth.shape
+    # the warp absorbs the mocap system's rigid frame exactly, the shell interpolates the markers
+    mv = capture_case.marker_vertices
+    np.testing.assert_allclose(V[:, mv], capture_case.truth[:, mv], atol=2e-3)
+    motion = np.linalg.norm(capture_case.truth - capture_case.V, axis=2).mean()
+    error = np.linalg.norm(V - capture_case.truth, axis=2).mean()
+    assert error < 0.1 * motion
+    np.testing.assert_array_equal(np.load(out / "faces.npy"), capture_case.F)
+    info = json.loads((out / "performance.json").read_text())
+    assert info["rate"] == 60.0 and info["n_frames"] == V.shape[0] and info["units"] == "mm"
+    assert info["source_files"]["markers"].endswith("take.c3d")
+    report = json.loads((out / "report.json").read_text())
+    assert report == json.loads(json.dumps(result.report))
+    assert set(report["timings"]) >= {"shell_setup_s", "deform_and_write_s", "total_s"}
+    assert len(report["marker_residual_mm"]["per_frame_max"]) == V.shape[0]
+    assert report["marker_residual_mm"]["max"] < 1e-6  # vertex map: markers interpolated exactly
+
+
+def test_batch_size_does_not_change_the_result(capture_case, tmp_path):
+    _run(capture_case, tmp_path / "a", batch_frames=1)
+    _run(capture_case, tmp_path / "b", batch_frames=7)
+    np.testing.assert_array_equal(np.load(tmp_path / "a" / "vertices.npy"), np.load(tmp_path / "b" / "vertices.npy"))
+
+
+def test_head_stabilisation_removes_head_motion(capture_case_head_motion, tmp_path):
+    case = capture_case_head_motion
+    _run(case, tmp_path / "stab", stabilize=True, smooth=False)
+    _run(case, tmp_path / "raw", stabilize=False, smooth=False)
+    stab = np.load(tmp_path / "stab" / "vertices.npy")
+    raw = np.load(tmp_path / "raw" / "vertices.npy")
+    err_stab = np.linalg.norm(stab - case.truth, axis=2).mean()
+    err_raw = np.linalg.norm(raw - case.truth, axis=2).mean()
+    assert err_stab < 0.3 and err_raw > 3 * err_stab
+    info = json.loads((tmp_path / "stab" / "performance.json").read_text())
+    assert sorted(info["parameters"]["stable_markers"]) == ["HB0", "HB1", "HB2", "HB3"]
+    # the head motion re-applied to the stabilised face gives the unstabilised animation
+    pose = np.load(tmp_path / "stab" / "head_motion.npy")
+    moved = np.einsum("tij,tnj->tni", pose[:, :3, :3], stab) + pose[:, None, :3, 3]
+    assert np.linalg.norm(moved - raw, axis=2).mean() < 0.5 * np.linalg.norm(raw - case.truth, axis=2).mean()
+
+
+def test_failure_midway_leaves_nothing(capture_case, tmp_path, monkeypatch):
+    out = tmp_path / "result"
+
+    def broken(self, *args, **kwargs):
+        raise RuntimeError("disk on fire")
+
+    monkeypatch.setattr(animate_module.ThinShellSolver, "deform_into", broken)
+    with pytest.raises(RuntimeError):
+        _run(capture_case, out)
+    assert not out.exists()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".result")]
+
+
+def test_refuses_to_overwrite_a_foreign_folder_but_replaces_a_result(capture_case, tmp_path):
+    foreign = tmp_path / "mine"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("precious")
+    with pytest.raises(InputError, match="refusing"):
+        _run(capture_case, foreign)
+    assert (foreign / "notes.txt").read_text() == "precious"
+    out = tmp_path / "result"
+    _run(capture_case, out)
+    (out / "stale.txt").write_text("from an earlier run")
+    _run(capture_case, out)
+    assert not (out / "stale.txt").exists() and (out / "vertices.npy").exists()
+
+
+def test_exports_obj_and_usd(capture_case, tmp_path):
+    from pxr import Usd, UsdGeom
+
+    out = tmp_path / "result"
+    _run(capture_case, out, exports=("obj", "usd"))
+    V = np.load(out / "vertices.npy")
+    objs = sorted((out / "obj").glob("frame_*.obj"))
+    assert len(objs) == V.shape[0]
+    np.testing.assert_allclose(read_mesh(objs[-1]).vertices, V[-1], atol=1e-5)
+    stage = Usd.Stage.Open(str(out / "performance.usdc"))
+    assert stage.GetTimeCodesPerSecond() == 60.0
+    mesh = next(UsdGeom.Mesh(p) for p in stage.Traverse() if p.IsA(UsdGeom.Mesh))
+    np.testing.assert_allclose(np.array(mesh.GetPointsAttr().Get(5)), V[5], atol=1e-5)
+
+
+def test_markers_missing_at_the_rest_frame_or_too_few(capture_case, tmp_path):
+    scan = read_mesh(capture_case.scan_path)
+    corr = read_correspondence(capture_case.map_path, scan)
+    take = read_markers(capture_case.markers_path)
+    P = take.positions.copy()
+    P[0] = np.nan
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(MarkerError, match="rest frame"):
+            animate_scan(scan, MarkerSequence(P, take.labels, take.rate), corr, tmp_path / "a", progress=False)
+        P = take.positions.copy()
+        P[:, 3:30] = np.nan  # only 3 face markers ever seen
+        with pytest.raises(MarkerError, match="at least 4"):
+            animate_scan(scan, MarkerSequence(P, take.labels, take.rate), corr, tmp_path / "b", progress=False)
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()

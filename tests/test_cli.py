@@ -1,0 +1,116 @@
+"""The command line: exit codes, one-line errors naming the file, nothing written on failure."""
+
+import json
+
+import numpy as np
+import pytest
+
+from facecap.cli import main
+from facecap.io import write_markers
+from facecap.structures import MarkerSequence
+
+
+def _animate(case, out, *extra):
+    return main(["--quiet", "animate", "--scan", str(case.scan_path), "--markers", str(case.markers_path),
+                 "--map", str(case.map_path), "--out", str(out), *extra])
+
+
+def _one_line_error(capsys, *needles):
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    assert err[0].startswith("facecap: error: ")
+    for needle in needles:
+        assert needle in err[0], err[0]
+    assert "Traceback" not in err[0]
+
+
+def test_animate_then_info_and_evaluate(capture_case, tmp_path, capsys):
+    out = tmp_path / "result"
+    assert _animate(capture_case, out, "--stabilize", "auto", "--export", "usd") == 0
+    assert (out / "vertices.npy").exists() and (out / "performance.usdc").exists()
+    capsys.readouterr()
+    assert main(["evaluate", "--truth", str(capture_case.truth_path), "--result", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    V = np.load(out / "vertices.npy")
+    expected = np.linalg.norm(V - capture_case.truth.astype(np.float32), axis=2)
+    assert summary["mean_mm"] == pytest.approx(float(expected.mean()), rel=1e-4)
+    assert summary["max_mm"] == pytest.approx(float(expected.max()), rel=1e-5)
+    assert main(["info", str(capture_case.markers_path), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["markers"] == 34 and info["frames"] == 40 and info["rate_hz"] == 60.0
+    assert main(["info", str(capture_case.scan_path), "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["vertices"] == len(capture_case.V) and info["triangles"] == len(capture_case.F)
+    assert main(["info", str(out)]) == 0
+    assert "facecap result" in capsys.readouterr().out
+
+
+def test_truncated_c3d(capture_case, tmp_path, capsys):
+    data = capture_case.markers_path.read_bytes()
+    capture_case.markers_path.write_bytes(data[: len(data) // 2])
+    out = tmp_path / "result"
+    assert _animate(capture_case, out) == 2
+    _one_line_error(capsys, "take.c3d")
+    assert not out.exists()
+
+
+def test_trc_with_missing_columns(capture_case, tmp_path, capsys):
+    trc = tmp_path / "take.trc"
+    write_markers(MarkerSequence(capture_case.take.positions, capture_case.take.labels, 60.0), trc)
+    lines = trc.read_text().splitlines()
+    lines[-1] = "\t".join(lines[-1].split("\t")[:10])  # a data row cut short
+    trc.write_text("\n".join(lines) + "\n")
+    capture_case.markers_path = trc
+    assert _animate(capture_case, tmp_path / "result") == 2
+    _one_line_error(capsys, "take.trc")
+    assert not (tmp_path / "result").exists()
+
+
+def test_obj_with_face_index_out_of_range(capture_case, tmp_path, capsys):
+    with open(capture_case.scan_path, "a") as fh:
+        fh.write("f 1 2 99999\n")
+    assert _animate(capture_case, tmp_path / "result") == 2
+    _one_line_error(capsys, "scan.obj", "99999")
+    assert not (tmp_path / "result").exists()
+
+
+@pytest.mark.parametrize(
+    "entry, needle",
+    [({"NOT_A_MARKER": 3}, "NOT_A_MARKER"), ({"M00": 10**7}, "10000000")],
+)
+def test_map_naming_a_missing_marker_or_vertex(capture_case, tmp_path, capsys, entry, needle):
+    mapping = json.loads(capture_case.map_path.read_text())
+    mapping.update(entry)
+    capture_case.map_path.write_text(json.dumps(mapping))
+    assert _animate(capture_case, tmp_path / "result") == 2
+    _one_line_error(capsys, "map.json", needle)
+    assert not (tmp_path / "result").exists()
+
+
+def test_all_markers_missing_at_the_rest_frame(capture_case, tmp_path, capsys):
+    P = capture_case.take.positions.copy()
+    P[5] = np.nan
+    write_markers(MarkerSequence(P, capture_case.take.labels, 60.0), capture_case.markers_path)
+    assert _animate(capture_case, tmp_path / "result", "--rest-frame", "5") == 2
+    _one_line_error(capsys, "take.c3d", "rest frame 5")
+    assert not (tmp_path / "result").exists()
+
+
+def test_fewer_than_four_usable_markers(capture_case, tmp_path, capsys):
+    mapping = dict(list(json.loads(capture_case.map_path.read_text()).items())[:3])
+    capture_case.map_path.write_text(json.dumps(mapping))
+    assert _animate(capture_case, tmp_path / "result") == 2
+    _one_line_error(capsys, "at least 4")
+    assert not (tmp_path / "result").exists()
+
+
+def test_missing_file_and_unknown_export(capture_case, tmp_path, capsys):
+    capture_case.scan_path = tmp_path / "nope.obj"
+    assert _animate(capture_case, tmp_path / "result") == 2
+    _one_line_error(capsys, "nope.obj")
+
+
+def test_unknown_export_format(capture_case, tmp_path, capsys):
+    assert _animate(capture_case, tmp_path / "result", "--export", "fbx") == 2
+    _one_line_error(capsys, "fbx")
+    assert not (tmp_path / "result").exists()
