@@ -94,6 +94,70 @@ def _peak_rss_gb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / GB  # Linux: KiB
 
 
+def _vm_kb(field: str) -> int:
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith(field + ":"):
+                return int(line.split()[1])
+    return 0
+
+
+class MemoryProbe:
+    """Split a run's peak memory at the end of the solver set-up, and sample RSS while streaming.
+
+    Replaces ``ThinShellSolver`` inside ``animate_scan`` by a subclass that, once
+    constructed, records ``ru_maxrss`` (the peak so far: inputs, checks, set-up),
+    resets the kernel's high-water mark (``/proc/self/clear_refs`` = 5, which
+    ``ru_maxrss`` reads) and starts sampling ``VmRSS`` every 0.2 s.
+    """
+
+    def __init__(self) -> None:
+        self.setup_peak_gb = float("nan")
+        self.samples: list[tuple[float, float]] = []
+        self._stop = False
+        self._thread: Any = None
+
+    def install(self) -> None:
+        import threading
+
+        from facecap.deform import animate_scan as module
+
+        probe, base = self, module.ThinShellSolver
+
+        class _Probed(base):  # type: ignore[misc, valid-type]
+            def __init__(self, *a: Any, **k: Any) -> None:
+                super().__init__(*a, **k)
+                probe.setup_peak_gb = _peak_rss_gb()
+                with open("/proc/self/clear_refs", "w") as f:
+                    f.write("5")
+                probe._thread = threading.Thread(target=probe._sample, daemon=True)
+                probe._thread.start()
+
+        module.ThinShellSolver = _Probed
+
+    def _sample(self) -> None:
+        t0 = time.perf_counter()
+        while not self._stop:
+            self.samples.append((time.perf_counter() - t0, _vm_kb("VmRSS") * 1024 / GB))
+            time.sleep(0.2)
+
+    def stop(self) -> dict[str, float]:
+        self._stop = True
+        if self._thread is not None:
+            self._thread.join()
+        after = _peak_rss_gb()
+        rss = [r for _, r in self.samples]
+        q = max(1, len(rss) // 4)
+        return {
+            "peak_rss_gb": max(self.setup_peak_gb, after),
+            "peak_rss_setup_gb": self.setup_peak_gb,
+            "peak_rss_after_setup_gb": after,
+            "rss_stream_first_quarter_max_gb": max(rss[:q]) if rss else float("nan"),
+            "rss_stream_last_quarter_max_gb": max(rss[-q:]) if rss else float("nan"),
+            "rss_samples": len(rss),
+        }
+
+
 def _median(xs: list[float]) -> float:
     return float(statistics.median(xs))
 
@@ -157,6 +221,32 @@ def _null_sink() -> None:
     write_performance._NpyStream = _NullNpyStream
 
 
+# --------------------------------------------------------------------------- a proposed hot path
+
+
+def blocked_deform_into(basis: np.ndarray, D: np.ndarray, rest: np.ndarray, out: np.ndarray,
+                        *, block_bytes: int = 6 << 20) -> np.ndarray:
+    """``ThinShellSolver.deform_into`` done in vertex blocks small enough to stay in cache (a proposal).
+
+    Same GEMM and the same strided adds, but per block of ``c`` vertices with
+    ``3 b c`` float32 scratch of about ``block_bytes``: the product never goes
+    to main memory and the three strided passes over ``out`` hit the cache,
+    instead of a (3b, n) temporary (allocated, page-faulted, written and read
+    back) and three full passes over ``out``.
+    """
+    b, n = D.shape[0], basis.shape[1]
+    c = max(1024, block_bytes // (12 * b))
+    X = np.ascontiguousarray(D.transpose(2, 0, 1).reshape(3 * b, -1), dtype=np.float32)
+    scratch = np.empty((3 * b, min(c, n)), np.float32)
+    for s in range(0, n, c):
+        e = min(s + c, n)
+        R = scratch[:, : e - s]
+        np.matmul(X, basis[:, s:e], out=R)
+        for a in range(3):
+            np.add(R[a * b : (a + 1) * b], rest[s:e, a], out=out[:, s:e, a])
+    return out
+
+
 # --------------------------------------------------------------------------- modes
 
 
@@ -178,6 +268,11 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
     max_err_mm = float(np.abs(ref - fast).max())
 
     compute: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
+    blocked: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
+    out = np.empty((batches[0], n, 3), np.float32)
+    ref = solver.deform_into(disp32[: batches[0]], rest32, np.empty_like(out))
+    blocked_err_mm = float(np.abs(blocked_deform_into(solver.basis, disp32[: batches[0]], rest32, out) - ref).max())
+    del out, ref
     direct: list[dict[str, float]] = []
     ratios: list[float] = []
     e2e: list[dict[str, float]] = []
@@ -191,6 +286,12 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
                     stop = min(start + b, T)
                     solver.deform_into(disp32[start:stop], rest32, out[: stop - start])
             compute[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
+            if not args.no_blocked:
+                with Window() as w:
+                    for start in range(0, T, b):
+                        stop = min(start + b, T)
+                        blocked_deform_into(solver.basis, disp32[start:stop], rest32, out[: stop - start])
+                blocked[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
             del out
         frames = range(rep * per_rep_direct, (rep + 1) * per_rep_direct)
         with Window() as w:
@@ -221,6 +322,9 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
         "max_err_dense_vs_sparse_mm": max_err_mm,
         "compute": {str(b): v for b, v in compute.items()},
         "compute_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in compute.items()},
+        "blocked": {str(b): v for b, v in blocked.items()},
+        "blocked_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in blocked.items() if v},
+        "blocked_max_diff_mm": blocked_err_mm,
         "direct": direct, "direct_s_per_frame_median": _median([d["s_per_frame"] for d in direct]),
         "direct_frames_total": per_rep_direct * args.repeats,
         "speedup": ratios, "speedup_median": _median(ratios),
@@ -246,17 +350,19 @@ def run_stream(args: argparse.Namespace) -> dict[str, Any]:
     take = MarkerSequence(mesh.V[markers][None] + motion, labels, RATE_HZ)
     corr = Correspondence(labels, np.repeat(markers[:, None], 3, axis=1), np.tile([1.0, 0.0, 0.0], (N_MARKERS, 1)))
     rss_inputs = _peak_rss_gb()
+    probe = MemoryProbe()
+    probe.install()
     out_root = Path(tempfile.mkdtemp(prefix="facecap-bench-", dir=args.out_dir))
     dest = out_root / "take"
     with Window() as w, warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = animate_scan(_scan(mesh), take, corr, dest, batch_frames=args.batch, progress=False)
     size = (dest / "vertices.npy").stat().st_size if (dest / "vertices.npy").exists() else 0
-    peak = _peak_rss_gb()
+    mem = probe.stop()
     shutil.rmtree(out_root, ignore_errors=True)
     timings = result.report["timings"]
     return {
-        "sink": args.sink, "peak_rss_gb": peak, "peak_rss_inputs_gb": rss_inputs,
+        "sink": args.sink, **mem, "peak_rss_inputs_gb": rss_inputs,
         "vertices_npy_gb": size / GB, "streamed_gb": args.frames * len(mesh.V) * 12 / GB,
         "wall_s": w.seconds, "other_cores": w.other_cores, "timings": timings,
         "setup_s": timings["shell_setup_s"], "e2e_fps": timings["frames_per_second"],
@@ -316,19 +422,23 @@ def machine_facts() -> dict[str, Any]:
     return facts
 
 
-def disk_speed(out_dir: str | None, gib: int = 2) -> dict[str, float]:
-    """``dd`` write speed, once to the page cache and once with ``conv=fdatasync``."""
+def disk_speed(out_dir: str | None, gib: int = 4) -> dict[str, float]:
+    """``dd`` write speed (MB/s, median of 3), into the page cache and with ``conv=fdatasync``."""
     folder = Path(tempfile.mkdtemp(prefix="facecap-dd-", dir=out_dir))
     res: dict[str, float] = {}
     try:
         for name, extra in (("dd_cached_MBps", []), ("dd_fdatasync_MBps", ["conv=fdatasync"])):
-            target = folder / "dd.bin"
-            t = time.perf_counter()
-            subprocess.run(["dd", "if=/dev/zero", f"of={target}", "bs=8M", f"count={128 * gib}", *extra],
-                           check=True, capture_output=True)
-            res[name] = gib * 1024**3 / (time.perf_counter() - t) / 1e6
-            target.unlink()
-            os.sync()
+            speeds = []
+            for _ in range(3):
+                target = folder / "dd.bin"
+                t = time.perf_counter()
+                subprocess.run(["dd", "if=/dev/zero", f"of={target}", "bs=8M", f"count={128 * gib}", *extra],
+                               check=True, capture_output=True)
+                speeds.append(gib * 1024**3 / (time.perf_counter() - t) / 1e6)
+                target.unlink()
+                os.sync()
+            res[name] = _median(speeds)
+            res[name + "_all"] = speeds  # type: ignore[assignment]
     finally:
         shutil.rmtree(folder, ignore_errors=True)
     return res
@@ -351,6 +461,8 @@ def run_all(args: argparse.Namespace) -> list[dict[str, Any]]:
     print("disk:", json.dumps(disk), flush=True)
     results = []
     for cfg in CONFIGS:
+        if args.only and cfg[1] not in args.only.split(","):
+            continue
         cmd = [sys.executable, __file__, *cfg, "--repeats", str(args.repeats)]
         if args.out_dir:
             cmd += ["--out-dir", args.out_dir]
@@ -383,36 +495,41 @@ def markdown(payload: dict[str, Any]) -> str:
     L = []
     L.append(f"Machine: {m['cpu']} ({m['simd']}), {m['cores']} cores, {m['ram_gb']} GB RAM; Python {m['python']}, "
              f"numpy {m['numpy']} ({m['numpy_blas']}), scipy {m['scipy']}, pypardiso {m['pypardiso']} "
-             f"(MKL {m['mkl']}), libigl {m['libigl']}. Disk (dd, 2 GiB of 8 MiB blocks): "
+             f"(MKL {m['mkl']}), libigl {m['libigl']}. Disk (dd, 4 GiB of 8 MiB blocks, median of 3): "
              f"{disk['dd_fdatasync_MBps']:.0f} MB/s with fdatasync, {disk['dd_cached_MBps']:.0f} MB/s into the page cache.")
     L.append("")
     speed = {r["case"]: r for r in rs if r["mode"] == "speed"}
     stream = {(r["case"], r["frames"], r["sink"]): r for r in rs if r["mode"] == "stream"}
     setups = {r["backend"]: r for r in rs if r["mode"] == "setup"}
-    L.append("| mesh | vertices | set-up s | compute fps b=16 | b=32 | b=64 | solve_direct s/frame | speed-up (b=32) "
-             "| end-to-end fps (write) | incl. sync | peak RSS 1000 frames GB | other load, cores |")
-    L.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    L.append("| mesh | vertices | set-up s | deform_into fps b=16 / 32 / 64 | blocked (proposal) b=16 / 32 / 64 "
+             "| solve_direct s/frame | speed-up (b=32) | end-to-end fps | incl. sync | other load, cores |")
+    L.append("|---|---|---|---|---|---|---|---|---|---|")
     for case in _meshes.CASES:
         s = speed.get(case)
         if s is None:
             continue
-        st = stream.get((case, 1000, "file"))
         setup_all = [s["setup_s"]] + [r["setup_s"] for k, r in stream.items() if k[0] == case]
-        cf = s["compute_fps_median"]
+        cf, bf = s["compute_fps_median"], s.get("blocked_fps_median", {})
         others = [x["other_cores"] for v in s["compute"].values() for x in v]
+        others += [x["other_cores"] for v in s.get("blocked", {}).values() for x in v]
+        others += [x["other_cores"] for x in s["direct"] + s["e2e"]]
         L.append(
             f"| {case} | {s['n_vertices']:,} | {_median(setup_all):.1f} (n={len(setup_all)}) | "
-            f"{cf.get('16', float('nan')):.0f} | {cf.get('32', float('nan')):.0f} | {cf.get('64', float('nan')):.0f} | "
+            + " / ".join(f"{cf[k]:.0f}" for k in cf) + " | "
+            + (" / ".join(f"{bf[k]:.0f}" for k in bf) if bf else "-") + " | "
             f"{s['direct_s_per_frame_median']:.3f} | {s['speedup_median']:.0f}x | "
             f"{s.get('e2e_fps_median', float('nan')):.0f} | {s.get('e2e_fps_incl_sync_median', float('nan')):.0f} | "
-            f"{st['peak_rss_gb'] if st else float('nan'):.2f} | {min(others):.2f}-{max(others):.2f} |"
+            f"{min(others):.2f}-{max(others):.2f} |"
         )
     L.append("")
-    L.append("| take | sink | streamed GB | animate_scan fps | set-up s | peak RSS GB | other load, cores |")
-    L.append("|---|---|---|---|---|---|---|")
+    L.append("| take | sink | streamed GB | animate_scan fps | set-up s | peak RSS GB (ru_maxrss) "
+             "| of which set-up | after set-up | RSS while streaming, first / last quarter GB | other load, cores |")
+    L.append("|---|---|---|---|---|---|---|---|---|---|")
     for (case, frames, sink), r in sorted(stream.items(), key=lambda kv: (kv[0][1], kv[0][0])):
         L.append(f"| {case} x {frames:,} frames | {'/dev/null' if sink == 'null' else 'vertices.npy'} | "
                  f"{r['streamed_gb']:.1f} | {r['e2e_fps']:.0f} | {r['setup_s']:.1f} | {r['peak_rss_gb']:.2f} | "
+                 f"{r['peak_rss_setup_gb']:.2f} | {r['peak_rss_after_setup_gb']:.2f} | "
+                 f"{r['rss_stream_first_quarter_max_gb']:.2f} / {r['rss_stream_last_quarter_max_gb']:.2f} | "
                  f"{r['other_cores']:.2f} |")
     if setups:
         L.append("")
@@ -436,7 +553,9 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--sink", choices=("file", "null"), default="file")
     p.add_argument("--backend", choices=("auto", "pardiso", "scipy"), default="auto")
     p.add_argument("--no-write", action="store_true", help="speed mode: skip the end-to-end writes")
+    p.add_argument("--no-blocked", action="store_true", help="speed mode: skip the proposed blocked hot path")
     p.add_argument("--out-dir", default=None, help="where outputs go (default: the system temp folder)")
+    p.add_argument("--only", default=None, help="--all: only these cases, e.g. 100k,300k")
     p.add_argument("--save", default=None, help="--all: save the raw results as JSON here")
     p.add_argument("--markdown", default=None, help="print the tables of a saved JSON and exit")
     args = p.parse_args(argv)
