@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
@@ -141,7 +142,10 @@ def prepare_markers(
             if unknown:
                 raise MarkerError(f"--stabilize names markers not in the take: {unknown}", path=markers.source_path)
             stable_idx = [index[s] for s in stabilize]
-        stab = stabilize_head(P, rest_frame=rest_frame, stable_markers=stable_idx)
+        if stable_idx is None:
+            stab = _auto_stabilize(P, rest_frame, [markers.label_index()[s] for s in ignored])
+        else:
+            stab = stabilize_head(P, rest_frame=rest_frame, stable_markers=stable_idx)
         P = stab.positions
         head_R, head_t, stab_res = stab.rotations, stab.translations, stab.residual_rms
         stable_labels = tuple(markers.labels[i] for i in stab.stable_markers)
@@ -177,6 +181,27 @@ def prepare_markers(
         stable_labels=stable_labels,
         notes=notes,
     )
+
+
+def _auto_stabilize(P: np.ndarray, rest_frame: int, unmapped: list[int]):
+    """Stabilise on the most rigid markers, preferring unmapped ones (head band, reference markers).
+
+    Markers that are in the take but not in the map are usually on a head
+    band or the skull; on a face that barely moves in parts of a take, some
+    face markers can look just as rigid, and would then carry expression into
+    the stabilisation. So when at least three unmapped markers exist and they
+    fit rigidly about as well as the best automatic set (median residual
+    within 1.5x + 0.1 mm), they are used.
+    """
+    auto = stabilize_head(P, rest_frame=rest_frame)
+    usable = [i for i in unmapped if not np.isnan(P[rest_frame, i]).any()]
+    if len(usable) >= 3:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FacecapWarning)
+            band = stabilize_head(P, rest_frame=rest_frame, stable_markers=usable)
+        if np.nanmedian(band.residual_rms) <= 1.5 * np.nanmedian(auto.residual_rms) + 0.1:
+            return band
+    return auto
 
 
 @dataclass(frozen=True)
@@ -259,6 +284,11 @@ def animate_scan(
     """
     timings: dict[str, float] = {}
     caught: list[str] = []
+
+    def stage(message: str) -> None:
+        if progress:
+            print(f"facecap: {message}", file=sys.stderr, flush=True)
+
     t0 = time.perf_counter()
     with warnings.catch_warnings(record=True) as records:
         warnings.simplefilter("always", FacecapWarning)
@@ -266,6 +296,7 @@ def animate_scan(
         timings["check_mesh_s"] = time.perf_counter() - t0
 
         t = time.perf_counter()
+        stage(f"conditioning {markers.n_frames} frames x {markers.n_markers} markers")
         prepared = prepare_markers(
             markers, scan, correspondence, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth
         )
@@ -279,6 +310,7 @@ def animate_scan(
         timings["correspondence_warp_s"] = time.perf_counter() - t
 
         t = time.perf_counter()
+        stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
         solver = ThinShellSolver(
             scan.vertices, scan.faces, prepared.constrained_vertices,
             ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend,

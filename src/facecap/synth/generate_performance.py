@@ -182,14 +182,17 @@ def generate_performance(
     normals = vertex_normals_at(truth, F, mv)  # (T, M, 3)
     face_markers = truth[:, mv].astype(np.float64) + marker_offset_mm * normals
 
-    # head band: points 15 mm off the top of the forehead and the temples, rigid with the skull
+    # head band: a ring of markers 15 mm off the skin, from the temples over the top of the
+    # forehead, rigid with the skull; spread in height and depth so they fix all three rotations
     band = np.zeros((0, 3))
     if headband_markers > 0:
-        top = V0[:, 1].max()
-        rim = V0[V0[:, 1] > top - 25.0]
-        xs = np.linspace(rim[:, 0].min() * 0.8, rim[:, 0].max() * 0.8, headband_markers)
-        band = np.stack([xs, np.full_like(xs, top - 10.0), np.interp(xs, np.sort(rim[:, 0]), rim[np.argsort(rim[:, 0]), 2])], 1)
-        band[:, 2] += 15.0
+        nose_tip_z = V0[:, 2].max()
+        upper = V0[V0[:, 1] > np.percentile(V0[:, 1], 70)]
+        angles = np.linspace(-1.1, 1.1, headband_markers)  # radians around the head, 0 = front
+        centre_z = nose_tip_z - 110.0
+        radius = np.ptp(upper[:, 0]) / 2 + 15.0
+        heights = upper[:, 1].max() - 15.0 - 35.0 * np.abs(angles) / 1.1
+        band = np.stack([radius * np.sin(angles), heights, centre_z + radius * np.cos(angles) * 0.9], axis=1)
         band += rng.normal(scale=2.0, size=band.shape)
     points = np.concatenate([face_markers, np.broadcast_to(band, (n_frames, band.shape[0], 3))], axis=1)
 
