@@ -17,10 +17,8 @@ from tqdm.auto import tqdm
 from ..errors import FacecapWarning, InputError, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
 from ..io.write_performance import PerformanceWriter
-from ..markers.bilateral_filter import bilateral_filter
-from ..markers.fill_gaps import fill_gaps
+from ..markers.condition_take import condition_take
 from ..markers.rigid_fit import rigid_fit
-from ..markers.stabilize_head import stabilize_head
 from ..mesh.check_mesh import check_mesh
 from ..structures import MarkerSequence, Mesh
 from .factor_spd import Backend
@@ -130,28 +128,10 @@ def prepare_markers(
             path=markers.source_path,
         )
 
-    filled = fill_gaps(raw, rate=markers.rate)
-    P = filled.positions
-    head_R = head_t = stab_res = None
-    stable_labels: tuple[str, ...] = ()
-    if stabilize is not False and stabilize is not None:
-        stable_idx = None
-        if not isinstance(stabilize, bool):
-            index = markers.label_index()
-            unknown = [s for s in stabilize if s not in index]
-            if unknown:
-                raise MarkerError(f"--stabilize names markers not in the take: {unknown}", path=markers.source_path)
-            stable_idx = [index[s] for s in stabilize]
-        if stable_idx is None:
-            stab = _auto_stabilize(P, rest_frame, [markers.label_index()[s] for s in ignored])
-        else:
-            stab = stabilize_head(P, rest_frame=rest_frame, stable_markers=stable_idx)
-        P = stab.positions
-        head_R, head_t, stab_res = stab.rotations, stab.translations, stab.residual_rms
-        stable_labels = tuple(markers.labels[i] for i in stab.stable_markers)
-    if smooth:
-        P = bilateral_filter(P, rate=markers.rate, rest_frame=rest_frame)
-
+    conditioned = condition_take(
+        markers, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth, preferred_stable=ignored
+    )
+    P = conditioned.positions
     P = P[:, columns]
     usable = ~np.isnan(P[rest_frame]).any(axis=1) & ~np.isnan(P).all(axis=(0, 2))
     if not usable.all():
@@ -165,7 +145,7 @@ def prepare_markers(
     keep = np.flatnonzero(usable)
     scan_points = corr.points(scan.vertices)[keep]
     constrained = corr.vertex_indices[keep, np.argmax(corr.weights[keep], axis=1)]
-    n_filled = int(filled.filled_mask[:, columns][:, keep].sum())
+    n_filled = int(conditioned.filled[:, columns][:, keep].sum())
     if n_filled:
         notes.append(f"{n_filled} occluded marker samples filled")
     return PreparedMarkers(
@@ -174,34 +154,13 @@ def prepare_markers(
         raw_positions=raw[:, columns][:, keep],
         scan_points=scan_points,
         constrained_vertices=np.asarray(constrained, dtype=np.int64),
-        filled=filled.filled_mask[:, columns][:, keep],
-        head_rotations=head_R,
-        head_translations=head_t,
-        stabilization_residual=stab_res,
-        stable_labels=stable_labels,
+        filled=conditioned.filled[:, columns][:, keep],
+        head_rotations=conditioned.head_rotations,
+        head_translations=conditioned.head_translations,
+        stabilization_residual=conditioned.stabilization_residual,
+        stable_labels=conditioned.stable_labels,
         notes=notes,
     )
-
-
-def _auto_stabilize(P: np.ndarray, rest_frame: int, unmapped: list[int]):
-    """Stabilise on the most rigid markers, preferring unmapped ones (head band, reference markers).
-
-    Markers that are in the take but not in the map are usually on a head
-    band or the skull; on a face that barely moves in parts of a take, some
-    face markers can look just as rigid, and would then carry expression into
-    the stabilisation. So when at least three unmapped markers exist and they
-    fit rigidly about as well as the best automatic set (median residual
-    within 1.5x + 0.1 mm), they are used.
-    """
-    auto = stabilize_head(P, rest_frame=rest_frame)
-    usable = [i for i in unmapped if not np.isnan(P[rest_frame, i]).any()]
-    if len(usable) >= 3:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FacecapWarning)
-            band = stabilize_head(P, rest_frame=rest_frame, stable_markers=usable)
-        if np.nanmedian(band.residual_rms) <= 1.5 * np.nanmedian(auto.residual_rms) + 0.1:
-            return band
-    return auto
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,127 @@
+"""Gap filling, head stabilisation and filtering of a whole take, in the order the pipelines need."""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from ..errors import FacecapWarning, MarkerError
+from ..structures import MarkerSequence
+from .bilateral_filter import bilateral_filter
+from .fill_gaps import fill_gaps
+from .stabilize_head import Stabilization, stabilize_head
+
+__all__ = ["ConditionedTake", "condition_take"]
+
+
+@dataclass(frozen=True, eq=False)
+class ConditionedTake:
+    """A take after conditioning, all markers kept in the take's column order.
+
+    Attributes
+    ----------
+    positions : (T, M, 3) float64 array, mm
+        Gap-filled, stabilised (if asked) and filtered positions; NaN only
+        where a marker could not be recovered.
+    filled : (T, M) bool array
+        Samples made up by gap filling.
+    head_rotations, head_translations : (T, 3, 3), (T, 3) float64 arrays or None
+        The stabilising transform of each frame (``x' = R x + t``), if stabilised.
+    stabilization_residual : (T,) float64 array or None, mm
+        RMS misfit of the stable markers after stabilisation.
+    stable_labels : tuple of str
+        Markers the stabilisation used.
+    """
+
+    positions: np.ndarray
+    filled: np.ndarray
+    head_rotations: np.ndarray | None
+    head_translations: np.ndarray | None
+    stabilization_residual: np.ndarray | None
+    stable_labels: tuple[str, ...]
+
+
+def condition_take(
+    markers: MarkerSequence,
+    *,
+    rest_frame: int = 0,
+    stabilize: bool | Sequence[str] = False,
+    smooth: bool = True,
+    preferred_stable: Sequence[str] = (),
+) -> ConditionedTake:
+    """Fill gaps, optionally remove head motion, then filter (Bickel 2007, section 3).
+
+    Parameters
+    ----------
+    markers : MarkerSequence
+    rest_frame : int, default 0
+        The frame stabilisation aligns every frame to.
+    stabilize : bool or sequence of str, default False
+        ``True``: find the stable markers automatically; labels: use those.
+    smooth : bool, default True
+        Apply the spatio-temporal bilateral filter.
+    preferred_stable : sequence of str
+        Markers to prefer for automatic stabilisation when they are rigid
+        (markers not in the map: head bands and reference markers), see
+        :func:`auto_stabilize`.
+
+    Returns
+    -------
+    ConditionedTake
+
+    Raises
+    ------
+    MarkerError
+        If ``rest_frame`` is outside the take or ``stabilize`` names unknown markers.
+    """
+    T = markers.n_frames
+    if not (0 <= rest_frame < T):
+        raise MarkerError(f"--rest-frame {rest_frame} is outside the take (0..{T - 1})", path=markers.source_path)
+    index = markers.label_index()
+    filled = fill_gaps(markers.positions, rate=markers.rate)
+    P = filled.positions
+    stab: Stabilization | None = None
+    if stabilize is not False and stabilize is not None:
+        if isinstance(stabilize, bool):
+            preferred = [index[s] for s in preferred_stable if s in index]
+            stab = auto_stabilize(P, rest_frame, preferred)
+        else:
+            unknown = [s for s in stabilize if s not in index]
+            if unknown:
+                raise MarkerError(f"--stabilize names markers not in the take: {unknown}", path=markers.source_path)
+            stab = stabilize_head(P, rest_frame=rest_frame, stable_markers=[index[s] for s in stabilize])
+        P = stab.positions
+    if smooth:
+        P = bilateral_filter(P, rate=markers.rate, rest_frame=rest_frame)
+    return ConditionedTake(
+        positions=P,
+        filled=filled.filled_mask,
+        head_rotations=None if stab is None else stab.rotations,
+        head_translations=None if stab is None else stab.translations,
+        stabilization_residual=None if stab is None else stab.residual_rms,
+        stable_labels=() if stab is None else tuple(markers.labels[i] for i in stab.stable_markers),
+    )
+
+
+def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> Stabilization:
+    """Stabilise on the most rigid markers, preferring the given ones (head band, reference markers).
+
+    Markers that are in the take but not in the map are usually on a head
+    band or the skull; on a face that barely moves in parts of a take, some
+    face markers can look just as rigid, and would then carry expression into
+    the stabilisation. So when at least three preferred markers exist and they
+    fit rigidly about as well as the best automatic set (median residual
+    within 1.5x + 0.1 mm), they are used.
+    """
+    auto = stabilize_head(P, rest_frame=rest_frame)
+    usable = [i for i in preferred if not np.isnan(P[rest_frame, i]).any()]
+    if len(usable) >= 3:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", FacecapWarning)
+            band = stabilize_head(P, rest_frame=rest_frame, stable_markers=usable)
+        if np.nanmedian(band.residual_rms) <= 1.5 * np.nanmedian(auto.residual_rms) + 0.1:
+            return band
+    return auto
