@@ -8,13 +8,10 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 import warnings
-from pathlib import Path
 from typing import Sequence
 
-import numpy as np
 
 from . import __version__
 from .errors import FacecapError, FacecapWarning

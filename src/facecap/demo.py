@@ -16,9 +16,6 @@ Everything is written into a staging folder renamed into place at the end.
 from __future__ import annotations
 
 import json
-import os
-import shutil
-import tempfile
 import time
 import warnings
 from pathlib import Path
@@ -26,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FacecapWarning, InputError
+from .io._atomic import atomic_folder
 
 __all__ = ["run_demo"]
 
@@ -56,19 +54,15 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     from .report import MeshPanel, evaluate_performance, plot_series, render_mesh, render_side_by_side
     from .report.evaluate_result import evaluate_result, read_truth
     from .synth.generate_performance import generate_performance
-    from .synth.ict_sample import bundled_path, load_ict_sample
+    from .synth.ict_sample import load_ict_sample
     from .synth.write_synthetic_case import write_synthetic_case
 
     if n_frames < 10:
         raise InputError(f"--frames: expected at least 10, got {n_frames}")
     out = Path(out_dir)
-    if out.exists() and any(out.iterdir()) and not (out / _DEMO_MARKER).exists():
-        raise InputError("exists, is not empty and holds no facecap demo; refusing to overwrite it", path=str(out))
-    out.resolve().parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.partial-", dir=out.resolve().parent))
     lines: list[str] = []
     t_start = time.perf_counter()
-    try:
+    with atomic_folder(out, marker_file=_DEMO_MARKER) as stage:
         pictures = stage / "pictures"
         pictures.mkdir()
         sample = load_ict_sample()
@@ -166,16 +160,6 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
             f"max {warp_error.max_mm:.3f} mm",
             *real_lines["lines"],
         ]
-        if out.exists():
-            trash = Path(tempfile.mkdtemp(prefix=f".{out.name}.old-", dir=stage.parent))
-            os.replace(out, trash / "old")
-            os.replace(stage, out)
-            shutil.rmtree(trash, ignore_errors=True)
-        else:
-            os.replace(stage, out)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
     lines.append(f"wrote {out}/ in {time.perf_counter() - t_start:.1f} s: animation/ (vertices.npy, performance.usdc), "
                  f"animface/, pictures/, {_DEMO_MARKER}")
     return lines

@@ -1,4 +1,5 @@
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -15,21 +16,9 @@ def _run(case, out, **kwargs):
     take = read_markers(case.markers_path)
     corr = read_correspondence(case.map_path, scan)
     kwargs.setdefault("progress", False)
-    with pytest.warns(Warning) if False else _nothing():
-        pass
-    import warnings
-
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # head-band markers not in the map: expected notice
+        warnings.simplefilter("ignore")  # head-band markers not in the map: an expected notice
         return animate_scan(scan, take, corr, out, **kwargs)
-
-
-class _nothing:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *a):
-        return False
 
 
 def test_markers_are_reproduced_and_output_is_streamed(capture_case, tmp_path):
@@ -126,8 +115,6 @@ def test_markers_missing_at_the_rest_frame_or_too_few(capture_case, tmp_path):
     take = read_markers(capture_case.markers_path)
     P = take.positions.copy()
     P[0] = np.nan
-    import warnings
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with pytest.raises(MarkerError, match="rest frame"):

@@ -3,7 +3,6 @@ import pytest
 
 from facecap.errors import MarkerError
 from facecap.markers.condition_take import condition_take
-from facecap.structures import MarkerSequence
 from facecap.synth import generate_performance
 
 

@@ -14,7 +14,7 @@ from typing import Any, Iterable, Sequence
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..errors import FacecapWarning, InputError, MarkerError
+from ..errors import FacecapWarning, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
 from ..io.write_performance import PerformanceWriter
 from ..markers.condition_take import condition_take

@@ -9,13 +9,15 @@ from __future__ import annotations
 
 import os
 import secrets
+import shutil
+import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["atomic_path", "atomic_write_text"]
+__all__ = ["atomic_folder", "atomic_path", "atomic_write_text"]
 
 
 def _partial_name(final: Path, suffix: str) -> Path:
@@ -114,3 +116,52 @@ def atomic_write_text(path: str | os.PathLike[str], text: str, *, encoding: str 
     with atomic_path(path) as tmp:
         with open(tmp, "w", encoding=encoding, newline="") as handle:
             handle.write(text)
+
+
+@contextmanager
+def atomic_folder(final_dir: str | os.PathLike[str], *, marker_file: str) -> Iterator[Path]:
+    """Build a folder under a hidden staging name and move it onto ``final_dir`` on success.
+
+    Parameters
+    ----------
+    final_dir : str or path-like
+        Destination. If it exists it must be empty or be an earlier result
+        of the same kind (it holds ``marker_file``); it is replaced only once
+        the block succeeds.
+    marker_file : str
+        Name of the file that marks a finished folder of this kind; the block
+        must write it.
+
+    Yields
+    ------
+    pathlib.Path
+        The staging folder to fill. On an exception it is deleted.
+
+    Raises
+    ------
+    InputError
+        If ``final_dir`` is a file, or a non-empty folder of something else.
+    """
+    final = Path(final_dir)
+    if final.exists():
+        if not final.is_dir():
+            raise InputError("exists and is not a folder", path=str(final))
+        if any(final.iterdir()) and not (final / marker_file).exists():
+            raise InputError(f"exists, is not empty and holds no {marker_file}; refusing to overwrite it", path=str(final))
+    parent = final.resolve().parent
+    parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{final.name}.partial-", dir=parent))
+    try:
+        yield staging
+        if not (staging / marker_file).exists():
+            raise InputError(f"internal: the folder was not finished ({marker_file} missing)", path=str(final))
+        if final.exists():
+            trash = Path(tempfile.mkdtemp(prefix=f".{final.name}.old-", dir=parent))
+            os.replace(final, trash / "old")
+            os.replace(staging, final)
+            shutil.rmtree(trash, ignore_errors=True)
+        else:
+            os.replace(staging, final)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise

@@ -19,8 +19,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -29,6 +27,7 @@ import numpy as np
 from ..errors import InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
+from ._atomic import atomic_folder
 
 __all__ = ["PerformanceWriter", "EXPORT_FORMATS", "read_performance_info"]
 
@@ -108,17 +107,8 @@ class PerformanceWriter:
         unknown = [e for e in self.exports if e not in EXPORT_FORMATS]
         if unknown:
             raise InputError(f"--export: unknown format(s) {unknown}; choose from {list(EXPORT_FORMATS)}")
-        if self.out_dir.exists():
-            if not self.out_dir.is_dir():
-                raise InputError("exists and is not a folder", path=str(self.out_dir))
-            if any(self.out_dir.iterdir()) and not (self.out_dir / _MARKER_FILE).exists():
-                raise InputError(
-                    "exists, is not empty and holds no facecap result; refusing to overwrite it",
-                    path=str(self.out_dir),
-                )
-        parent = self.out_dir.resolve().parent
-        parent.mkdir(parents=True, exist_ok=True)
-        self.staging = Path(tempfile.mkdtemp(prefix=f".{self.out_dir.name}.partial-", dir=parent))
+        self._folder = atomic_folder(self.out_dir, marker_file=_MARKER_FILE)
+        self.staging = self._folder.__enter__()
         self._unit_scale = np.float32(1.0 / mm_per_unit(mesh.source_unit))
         self._npy = _NpyStream(self.staging / "vertices.npy", (self.n_frames, mesh.n_vertices, 3), np.dtype("<f4"))
         self._usd = None
@@ -208,13 +198,7 @@ class PerformanceWriter:
             **metadata,
         }
         (self.staging / _MARKER_FILE).write_text(json.dumps(info, indent=2, default=_json_default))
-        if self.out_dir.exists():
-            trash = Path(tempfile.mkdtemp(prefix=f".{self.out_dir.name}.old-", dir=self.staging.parent))
-            os.replace(self.out_dir, trash / "old")
-            os.replace(self.staging, self.out_dir)
-            shutil.rmtree(trash, ignore_errors=True)
-        else:
-            os.replace(self.staging, self.out_dir)
+        self._folder.__exit__(None, None, None)
         self._finished = True
         return self.out_dir
 
@@ -229,7 +213,8 @@ class PerformanceWriter:
                 self._usd.abort()
             except Exception:
                 pass
-        shutil.rmtree(self.staging, ignore_errors=True)
+        if not self._finished:
+            self._folder.__exit__(InputError, InputError("aborted"), None)
 
 
 def read_performance_info(out_dir: str | os.PathLike[str]) -> dict[str, Any]:
