@@ -61,13 +61,7 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     scan = read_mesh(args.scan, unit=args.scan_units)
     take = read_markers(args.markers, unit=args.marker_units)
     corr = read_correspondence(args.map, scan)
-    stabilize: bool | list[str]
-    if args.stabilize in ("off", "none", "no"):
-        stabilize = False
-    elif args.stabilize == "auto":
-        stabilize = True
-    else:
-        stabilize = [s.strip() for s in args.stabilize.split(",") if s.strip()]
+    stabilize = _stabilize_option(args.stabilize)
     exports = [e.strip().lower() for e in args.export.split(",") if e.strip()]
     if args.batch_frames < 1:
         raise FacecapError(f"--batch-frames: expected a positive integer, got {args.batch_frames}")
@@ -150,6 +144,120 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _stabilize_option(value: str) -> bool | list[str]:
+    if value in ("off", "none", "no"):
+        return False
+    if value == "auto":
+        return True
+    return [s.strip() for s in value.split(",") if s.strip()]
+
+
+def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("plan-scans", help="choose the fewest expressions to scan (Huang et al. 2011, Alg. 1)")
+    p.add_argument("--markers", required=True, help="mocap take: .c3d, .trc or .csv")
+    p.add_argument("--tolerance", type=float, default=0.003,
+                   help="reconstruction tolerance, fraction of the marker bounding-box diagonal [0.003]")
+    p.add_argument("--max-scans", type=int, default=None, help="stop after this many scans")
+    p.add_argument("--rest-frame", type=int, default=0, help="frame stabilisation aligns to [0]")
+    p.add_argument("--stabilize", default="auto", help="'auto', 'off' or comma-separated labels [auto]")
+    p.add_argument("--out", required=True, help="plan.json to write (the plot goes beside it)")
+    p.set_defaults(func=_cmd_plan_scans)
+
+    p = sub.add_parser("register-scans", help="register one scan per planned frame into one topology")
+    p.add_argument("--plan", required=True, help="plan.json from plan-scans")
+    p.add_argument("--markers", required=True, help="the take the plan was made from")
+    p.add_argument("--scans", required=True, nargs="+", help="one scan per planned frame, in the plan's order")
+    p.add_argument("--scan-units", default="mm", help="length unit of the scan files [mm]")
+    p.add_argument("--template", default=None, help="mesh giving the output topology (default: the first scan)")
+    p.add_argument("--template-units", default="mm", help="length unit of the template file [mm]")
+    p.add_argument("--marker-offset", type=float, default=1.5, help="marker centre height above the skin, mm [1.5]")
+    p.add_argument("--no-refine", action="store_true", help="skip the fine-scale (optical flow) registration")
+    p.add_argument("--out", required=True, help="bases folder")
+    p.set_defaults(func=_cmd_register_scans)
+
+    p = sub.add_parser("blend", help="reconstruct a take from registered bases (NNLS blendshapes)")
+    p.add_argument("--bases", required=True, help="bases folder from register-scans")
+    p.add_argument("--markers", required=True, help="mocap take")
+    p.add_argument("--export", default="", help="extra exports, comma-separated: obj, ply, usd")
+    p.add_argument("--out", required=True, help="output folder")
+    p.set_defaults(func=_cmd_blend)
+
+    p = sub.add_parser("scans-pipeline", help="plan-scans, register-scans and blend in one go (scans exist)")
+    p.add_argument("--markers", required=True)
+    p.add_argument("--scans", required=True, nargs="+", help="one scan per planned frame, in the plan's order")
+    p.add_argument("--plan", default=None, help="an existing plan.json (default: plan now and expect matching scans)")
+    p.add_argument("--tolerance", type=float, default=0.003)
+    p.add_argument("--scan-units", default="mm")
+    p.add_argument("--template", default=None)
+    p.add_argument("--template-units", default="mm")
+    p.add_argument("--marker-offset", type=float, default=1.5)
+    p.add_argument("--no-refine", action="store_true")
+    p.add_argument("--export", default="")
+    p.add_argument("--out", required=True, help="output folder (holds plan.json, bases/, animation/)")
+    p.set_defaults(func=_cmd_scans_pipeline)
+
+
+def _cmd_plan_scans(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .blendshapes.scan_workflow import plan_scans
+
+    out = Path(args.out)
+    plan = plan_scans(args.markers, out, tolerance=args.tolerance, max_frames=args.max_scans,
+                      rest_frame=args.rest_frame, stabilize=_stabilize_option(args.stabilize),
+                      plot_path=out.with_suffix(".png"), progress=not args.quiet)
+    if not args.quiet:
+        print(f"wrote {out}: scan {len(plan.frames)} expressions, frames {', '.join(map(str, plan.frames))} "
+              f"(error {plan.error_after_each[-1]:.3f} mm, tolerance {plan.tolerance_mm:.3f} mm)")
+    return 0
+
+
+def _cmd_register_scans(args: argparse.Namespace) -> int:
+    from .blendshapes.scan_workflow import register_planned_scans
+
+    report = register_planned_scans(args.plan, args.markers, args.scans, args.out, template_path=args.template,
+                                    scan_unit=args.scan_units, template_unit=args.template_units,
+                                    marker_offset_mm=args.marker_offset, refine=not args.no_refine,
+                                    progress=not args.quiet)
+    if not args.quiet:
+        reg = report["registration_mm"]
+        print(f"wrote {args.out}: {len(reg)} bases, registration residual mean {sum(reg) / len(reg):.3f} mm, "
+              f"max {max(reg):.3f} mm; flagged: {report['flagged'] or 'none'}")
+    return 0
+
+
+def _cmd_blend(args: argparse.Namespace) -> int:
+    from .blendshapes.scan_workflow import blend_take
+
+    exports = [e.strip().lower() for e in args.export.split(",") if e.strip()]
+    report = blend_take(args.bases, args.markers, args.out, exports=exports, progress=not args.quiet)
+    if not args.quiet:
+        print(f"wrote {args.out}: {report['n_frames']} frames from {report['n_bases']} bases, "
+              f"marker residual mean {report['marker_residual_mm']['mean']:.3f} mm")
+    return 0
+
+
+def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans
+
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    plan_path = Path(args.plan) if args.plan else out / "plan.json"
+    if not args.plan:
+        plan_scans(args.markers, plan_path, tolerance=args.tolerance, plot_path=out / "plan.png",
+                   progress=not args.quiet)
+    register_planned_scans(plan_path, args.markers, args.scans, out / "bases", template_path=args.template,
+                           scan_unit=args.scan_units, template_unit=args.template_units,
+                           marker_offset_mm=args.marker_offset, refine=not args.no_refine, progress=not args.quiet)
+    exports = [e.strip().lower() for e in args.export.split(",") if e.strip()]
+    report = blend_take(out / "bases", args.markers, out / "animation", exports=exports, progress=not args.quiet)
+    if not args.quiet:
+        print(f"wrote {out}: plan.json, bases/, animation/ ({report['n_frames']} frames)")
+    return 0
+
+
 def _add_demo(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="run the main job on the bundled sample, writing facecap-demo/")
     p.add_argument("--out", default="facecap-demo", help="output folder [facecap-demo]")
@@ -179,6 +287,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_animate(sub)
     _add_info(sub)
     _add_evaluate(sub)
+    _add_scan_commands(sub)
     _add_demo(sub)
     for action in sub.choices.values():  # let -q/--quiet also follow the command
         action.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,

@@ -15,7 +15,6 @@ from ..mesh.laplacian import laplace_operators
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import FloatArray, IntArray
-from ..validate import as_points
 
 __all__ = ["register_template_to_scan", "TemplateRegistration", "DEFAULT_CLOSEST_POINT_WEIGHTS"]
 

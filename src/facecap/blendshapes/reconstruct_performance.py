@@ -1,0 +1,123 @@
+"""Dense performance from blendshape bases and per-frame NNLS weights (Huang et al. 2011, eq. 12)."""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..errors import InputError
+from ..io.write_performance import PerformanceWriter
+from ..structures import Mesh
+from .nnls_weights import nnls_weights
+
+__all__ = ["blend_weights", "write_blended_performance"]
+
+
+def blend_weights(basis_markers: np.ndarray, markers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Non-negative blend weights of every frame (eq. 12).
+
+    Parameters
+    ----------
+    basis_markers : (K, M, 3) float array, mm
+        The markers of each basis (the selected frames' markers: after fitting,
+        ``D d_i`` equals them, so eq. 12 and eq. 3 use the same matrix).
+    markers : (T, M, 3) float array, mm
+        Conditioned markers of every frame, in the same frame as the bases.
+
+    Returns
+    -------
+    weights : (T, K) float64 array, >= 0
+    residual_mm : (T,) float64 array
+        RMS marker distance of the blended markers to the captured ones.
+    """
+    Xb = np.asarray(basis_markers, dtype=np.float64)
+    X = np.asarray(markers, dtype=np.float64)
+    if Xb.ndim != 3 or X.ndim != 3 or Xb.shape[1:] != X.shape[1:]:
+        raise InputError(f"markers: expected (T, M, 3) matching the bases' (K, M, 3), got {X.shape} and {Xb.shape}")
+    seen = np.all(np.isfinite(X), axis=(0, 2)) & np.all(np.isfinite(Xb), axis=(0, 2))
+    if seen.sum() < 3:
+        raise InputError("fewer than 3 markers are seen in every frame and every basis")
+    A = Xb[:, seen].reshape(Xb.shape[0], -1).T  # (3M, K)
+    B = X[:, seen].reshape(X.shape[0], -1).T  # (3M, T)
+    weights, residual = nnls_weights(A, B)
+    return weights.T, residual / np.sqrt(seen.sum())
+
+
+def write_blended_performance(
+    out_dir: str | Path,
+    template: Mesh,
+    bases: np.ndarray,
+    weights: np.ndarray,
+    *,
+    rate: float,
+    output_from_bases: np.ndarray | None = None,
+    exports: Iterable[str] = (),
+    metadata: dict[str, Any] | None = None,
+    extra_files: dict[str, Any] | None = None,
+    batch_frames: int = 64,
+    progress: bool = True,
+) -> Path:
+    """Stream ``m_t = sum_i w_t,i d_i`` to an output folder like ``facecap animate`` writes.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+    template : Mesh
+        Topology, UVs and unit of the output.
+    bases : (K, n, 3) float array, mm
+        Blendshape bases (in the markers' frame).
+    weights : (T, K) float array
+    rate : float
+        Frame rate, Hz.
+    output_from_bases : (4, 4) float array, optional
+        Rigid transform applied to every blended frame (to put the result in
+        the template's own coordinates); applied after blending because the
+        weights need not sum to one.
+    exports : iterable of {'obj', 'ply', 'usd'}
+    metadata : dict, optional
+        Added to ``performance.json``.
+    extra_files : dict of str to array or str, optional
+        Written into the folder before it is moved into place: ``.npy`` names
+        get arrays, other names get text.
+    batch_frames : int, default 64
+    progress : bool, default True
+
+    Returns
+    -------
+    Path
+        The finished folder.
+    """
+    Bs = np.asarray(bases, dtype=np.float32)
+    W = np.asarray(weights, dtype=np.float32)
+    if Bs.ndim != 3 or Bs.shape[1] != template.n_vertices or W.ndim != 2 or W.shape[1] != Bs.shape[0]:
+        raise InputError(f"bases {Bs.shape} and weights {W.shape} do not match a template of {template.n_vertices} vertices")
+    K, n, _ = Bs.shape
+    T = W.shape[0]
+    flat = Bs.reshape(K, n * 3)
+    R = None if output_from_bases is None else np.asarray(output_from_bases, dtype=np.float32)
+    with PerformanceWriter(out_dir, mesh=template, rate=rate, n_frames=T, exports=exports) as writer:
+        bar = tqdm(total=T, unit="frame", desc="blend", disable=not progress, leave=False)
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            pending = None
+            for start in range(0, T, batch_frames):
+                stop = min(start + batch_frames, T)
+                block = (W[start:stop] @ flat).reshape(stop - start, n, 3)
+                if R is not None:
+                    block = block @ R[:3, :3].T + R[:3, 3]
+                if pending is not None:
+                    pending.result()
+                pending = pool.submit(writer.write_frames, start, block)
+                bar.update(stop - start)
+            if pending is not None:
+                pending.result()
+        bar.close()
+        for name, content in (extra_files or {}).items():
+            if name.endswith(".npy"):
+                np.save(writer.path(name), content)
+            else:
+                writer.path(name).write_text(str(content))
+        return writer.finish({"method": "huang2011-blendshapes", **(metadata or {})})

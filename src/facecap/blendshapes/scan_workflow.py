@@ -1,0 +1,192 @@
+"""The scan-based capture workflow of Huang et al. 2011, file to file, as the CLI runs it.
+
+``plan_scans`` (which frames to scan) -> the actor is scanned ->
+``register_planned_scans`` (every scan in one topology, fitted to its frame)
+-> ``blend_take`` (every frame of the take rebuilt from the bases).
+The conditioning of the take (rest frame, stable markers, filtering) is
+recorded in ``plan.json`` and repeated identically by the later steps, so
+all three see the same markers.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from ..errors import InputError
+from ..io.read_markers import read_markers
+from ..io.read_mesh import read_mesh
+from ..io.registered_scans import read_registered_scans, write_registered_scans
+from ..io.scan_plan import read_scan_plan, write_scan_plan
+from ..markers.condition_take import ConditionedTake, condition_take
+from ..structures import MarkerSequence, Mesh
+from .reconstruct_performance import blend_weights, write_blended_performance
+from .select_scan_frames import ScanPlan, select_scan_frames
+
+__all__ = ["plan_scans", "register_planned_scans", "blend_take"]
+
+
+def _condition(take: MarkerSequence, conditioning: dict[str, Any]) -> ConditionedTake:
+    stable = conditioning.get("stable_markers") or False
+    return condition_take(
+        take, rest_frame=int(conditioning.get("rest_frame", 0)), stabilize=stable,
+        smooth=bool(conditioning.get("smooth", True)),
+    )
+
+
+def plan_scans(
+    markers_path: str | Path,
+    plan_path: str | Path,
+    *,
+    tolerance: float = 0.003,
+    max_frames: int | None = None,
+    rest_frame: int = 0,
+    stabilize: bool | Sequence[str] = True,
+    smooth: bool = True,
+    plot_path: str | Path | None = None,
+    marker_unit: str | None = None,
+    progress: bool = True,
+) -> ScanPlan:
+    """Choose the fewest frames to scan (Algorithm 1) and write ``plan.json`` (+ the Fig. 8 plot).
+
+    Parameters
+    ----------
+    markers_path : str or Path
+        The take.
+    plan_path : str or Path
+        Where to write ``plan.json``.
+    tolerance : float, default 0.003
+        Reconstruction tolerance as a fraction of the marker bounding-box diagonal.
+    max_frames : int, optional
+        Stop after this many frames even if the tolerance is not met.
+    rest_frame : int, default 0
+    stabilize : bool or sequence of str, default True
+        Head motion must be removed before choosing expressions (otherwise
+        head poses get chosen); ``True`` finds the stable markers.
+    smooth : bool, default True
+    plot_path : str or Path, optional
+        PNG of the error against the number of scans (Huang 2011, Fig. 8).
+    marker_unit : str, optional
+        Override the unit the take declares.
+    progress : bool, default True
+
+    Returns
+    -------
+    ScanPlan
+    """
+    take = read_markers(markers_path, unit=marker_unit)
+    conditioned = condition_take(take, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth)
+    plan = select_scan_frames(
+        conditioned.positions, tolerance=tolerance, max_frames=max_frames, rate=take.rate,
+        first_frame=take.first_frame, progress=progress,
+    )
+    conditioning = {"rest_frame": rest_frame, "stable_markers": list(conditioned.stable_labels), "smooth": smooth}
+    write_scan_plan(plan_path, plan.to_dict(), conditioning=conditioning, source=str(markers_path))
+    if plot_path is not None:
+        from ..report import plot_series
+
+        counts = np.arange(1, len(plan.frames) + 1, dtype=np.float64)
+        plot_series(
+            counts, {"reconstruction error (RMS)": plan.error_after_each,
+                     "tolerance": np.full(counts.size, plan.tolerance_mm)},
+            plot_path, ylabel="marker reconstruction error (mm)", xlabel="number of scanned expressions",
+            title=f"Scans needed for {take.n_frames} frames (tolerance {100 * tolerance:.2g}% of "
+                  f"{plan.diagonal_mm:.0f} mm)",
+        )
+    return plan
+
+
+def register_planned_scans(
+    plan_path: str | Path,
+    markers_path: str | Path,
+    scan_paths: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    template_path: str | Path | None = None,
+    scan_unit: str = "mm",
+    template_unit: str = "mm",
+    marker_offset_mm: float = 1.5,
+    refine: bool = True,
+    marker_unit: str | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Register one scan per planned frame and write the bases folder.
+
+    Returns the registration report (also in ``bases.json``).
+    """
+    from ..registration.register_scans import register_scans
+
+    take = read_markers(markers_path, unit=marker_unit)
+    plan = read_scan_plan(plan_path, n_frames=take.n_frames)
+    frames = plan["frames"]
+    if len(scan_paths) != len(frames):
+        raise InputError(f"--scans: the plan lists {len(frames)} frames, {len(scan_paths)} scans were given "
+                         "(one scan per planned frame, in the plan's order)")
+    conditioning = plan["conditioning"]
+    conditioned = _condition(take, conditioning)
+    scans = [read_mesh(p, unit=scan_unit) for p in scan_paths]
+    template: Mesh | None = read_mesh(template_path, unit=template_unit) if template_path else None
+    t = time.perf_counter()
+    registered = register_scans(
+        scans, conditioned.positions[frames], template=template,
+        template_markers=conditioned.positions[int(conditioning.get("rest_frame", 0))] if template else None,
+        marker_offset_mm=marker_offset_mm, refine=refine, progress=progress,
+    )
+    report = {**registered.report, "total_s": time.perf_counter() - t,
+              "registration_mm": registered.registration_mm.tolist()}
+    write_registered_scans(
+        out_dir, template=registered.template, bases=registered.bases, basis_markers=registered.basis_markers,
+        marker_labels=list(take.labels), output_from_mocap=registered.output_from_mocap,
+        plan={**plan, "markers": str(markers_path)}, report=report,
+    )
+    return report
+
+
+def blend_take(
+    bases_dir: str | Path,
+    markers_path: str | Path,
+    out_dir: str | Path,
+    *,
+    exports: Sequence[str] = (),
+    marker_unit: str | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Rebuild every frame of a take from the bases (eq. 12) and write it like ``facecap animate``.
+
+    Besides the usual output folder, writes ``weights.npy`` (T, K), ``weights.csv``,
+    ``bases.npy`` and ``blend_report.json`` (per-frame marker residuals).
+    """
+    folder = read_registered_scans(bases_dir)
+    take = read_markers(markers_path, unit=marker_unit)
+    labels = folder["marker_labels"]
+    missing = [s for s in labels if s not in take.label_index()]
+    if missing:
+        raise InputError(f"the take lacks markers the bases were made with: {missing}", path=str(markers_path))
+    take = take.select(labels)
+    conditioned = _condition(take, folder["plan"]["conditioning"])
+    t = time.perf_counter()
+    weights, residual = blend_weights(folder["basis_markers"], conditioned.positions)
+    frames = folder["plan"]["frames"]
+    header = "frame,time_s," + ",".join(f"basis_{i}_frame_{f}" for i, f in enumerate(frames))
+    rows = [f"{t_},{t_ / take.rate:.6f}," + ",".join(f"{w:.6g}" for w in weights[t_]) for t_ in range(len(weights))]
+    report = {
+        "n_frames": int(take.n_frames),
+        "n_bases": int(weights.shape[1]),
+        "marker_residual_mm": {"per_frame": residual.tolist(), "mean": float(residual.mean()),
+                               "max": float(residual.max())},
+        "weights_s": time.perf_counter() - t,
+    }
+    write_blended_performance(
+        out_dir, folder["template"], folder["bases"], weights, rate=take.rate,
+        output_from_bases=folder["output_from_mocap"], exports=exports, progress=progress,
+        metadata={"source_files": {"bases": str(bases_dir), "markers": str(markers_path)},
+                  "rest_frame": int(folder["plan"]["conditioning"].get("rest_frame", 0)), "stabilized": True,
+                  "planned_frames": frames},
+        extra_files={"weights.npy": weights, "weights.csv": header + "\n" + "\n".join(rows) + "\n",
+                     "bases.npy": folder["bases"], "blend_report.json": json.dumps(report, indent=1)},
+    )
+    return report

@@ -1,0 +1,220 @@
+"""Every scan of a plan in one template topology: markers, large scale, fine scale, fitted bases."""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+import igl
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..blendshapes.fit_bases_to_markers import fit_bases_to_markers
+from ..errors import FacecapWarning, InputError
+from ..structures import Mesh
+from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
+from .register_template_to_scan import register_template_to_scan
+
+__all__ = ["RegisteredScans", "register_scans", "DEFAULT_MARKER_OFFSET_MM"]
+
+DEFAULT_MARKER_OFFSET_MM = 1.5
+"""Height of a marker's centre above the skin: half a 3 mm hemispherical marker."""
+
+
+@dataclass(frozen=True, eq=False)
+class RegisteredScans:
+    """The scans of a plan registered to one template and fitted to their frames' markers.
+
+    Attributes
+    ----------
+    template : Mesh
+        The template, in its own coordinates and unit (the output topology).
+    bases : (K, n, 3) float64 array, mm
+        Blendshape bases in the (stabilised) mocap frame.
+    basis_markers : (K, M, 3) float64 array, mm
+        The planned frames' markers: the bases reproduce them.
+    output_from_mocap : (4, 4) float64 array
+        Rigid transform from the mocap frame to the template's coordinates.
+    marker_vertices, marker_weights : (M, 3) int64 / float64 arrays
+        Where each marker sits on the template (barycentric); rows of
+        markers that never landed on the template are -1 / 0.
+    registration_mm : (K,) float64 array
+        Mean distance of each registered scan to its scan's surface.
+    flagged : list of int
+        Scans whose registration stayed above the threshold, or failed checks.
+    report : dict
+        Per-scan details (rigid transforms, marker residuals, flips, timings).
+    """
+
+    template: Mesh
+    bases: np.ndarray
+    basis_markers: np.ndarray
+    output_from_mocap: np.ndarray
+    marker_vertices: np.ndarray
+    marker_weights: np.ndarray
+    registration_mm: np.ndarray
+    flagged: list[int]
+    report: dict[str, Any] = field(default_factory=dict)
+
+
+def _to_mocap(mesh: Mesh, reg: MarkerRegistration) -> Mesh:
+    """The scan moved into the mocap frame (the inverse of the registration's rigid motion)."""
+    V = (mesh.vertices - reg.translation) @ reg.rotation
+    return mesh.with_vertices(V)
+
+
+def register_scans(
+    scans: Sequence[Mesh],
+    frame_markers: np.ndarray,
+    *,
+    template: Mesh | None = None,
+    template_markers: np.ndarray | None = None,
+    marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
+    refine: bool = True,
+    flag_threshold_mm: float = 0.2,
+    progress: bool = True,
+) -> RegisteredScans:
+    """Register a plan's scans (Huang et al. 2011, sections 5, 6.1, 6.2 and 7).
+
+    Parameters
+    ----------
+    scans : sequence of Mesh, length K
+        One scan per planned frame, in the plan's order, each in its own
+        scanner frame and topology (mm).
+    frame_markers : (K, M, 3) float array, mm
+        The planned frames' conditioned (gap-filled, stabilised) markers.
+    template : Mesh, optional
+        The mesh whose topology the bases take. Default: the first scan.
+    template_markers : (M, 3) float array, optional
+        Markers of a frame whose expression matches ``template`` (for example
+        the take's rest frame for a neutral template); registered onto the
+        template to place the markers on it. Required with ``template``.
+    marker_offset_mm : float, default 1.5
+        Marker centre height above the skin.
+    refine : bool, default True
+        Run the fine-scale registration (section 6.2).
+    flag_threshold_mm : float, default 0.2
+        Scans whose mean distance to their surface stays above this are flagged.
+    progress : bool, default True
+
+    Returns
+    -------
+    RegisteredScans
+
+    Raises
+    ------
+    InputError
+        On mismatched counts, or a template without its markers.
+    """
+    X = np.asarray(frame_markers, dtype=np.float64)
+    K = len(scans)
+    if X.ndim != 3 or X.shape[0] != K or X.shape[2] != 3:
+        raise InputError(f"--scans: the plan has {X.shape[0] if X.ndim == 3 else '?'} frames but {K} scans were given")
+    if template is not None and template_markers is None:
+        raise InputError("a template needs the markers of a frame matching its expression (template_markers)")
+    timings: dict[str, float] = {}
+    report: dict[str, Any] = {"scans": []}
+    flagged: set[int] = set()
+    t = time.perf_counter()
+    registrations = []
+    for i, scan in enumerate(tqdm(scans, desc="markers -> scans", disable=not progress, leave=False)):
+        reg = register_markers_to_scan(X[i], scan, subspace=X, marker_offset_mm=marker_offset_mm)
+        registrations.append(reg)
+        matched = int((~reg.unmatched).sum())
+        entry = {
+            "scan": scan.source_path or f"scan {i}",
+            "vertices": scan.n_vertices,
+            "markers_matched": matched,
+            "marker_rms_mm": reg.rms,
+            "normals_flipped": reg.normals_flipped,
+        }
+        if matched < 4:
+            raise InputError(
+                f"no usable marker lands on this scan ({matched} matched); is it the planned expression?",
+                path=scan.source_path,
+            )
+        if reg.normals_flipped:
+            warnings.warn(f"{entry['scan']}: triangles are wound inward (flipped normals); handled", FacecapWarning,
+                          stacklevel=2)
+        report["scans"].append(entry)
+    timings["marker_registration_s"] = time.perf_counter() - t
+
+    scans_mocap = [_to_mocap(s, r) for s, r in zip(scans, registrations)]
+    if template is None:
+        tmpl_mocap = scans_mocap[0]
+        tmpl_reg = registrations[0]
+        output_from_mocap = np.eye(4)
+        output_from_mocap[:3, :3], output_from_mocap[:3, 3] = tmpl_reg.rotation, tmpl_reg.translation
+        template = scans[0]
+    else:
+        tmpl_reg = register_markers_to_scan(np.asarray(template_markers, dtype=np.float64), template, subspace=X,
+                                            marker_offset_mm=marker_offset_mm)
+        tmpl_mocap = _to_mocap(template, tmpl_reg)
+        output_from_mocap = np.eye(4)
+        output_from_mocap[:3, :3], output_from_mocap[:3, 3] = tmpl_reg.rotation, tmpl_reg.translation
+    on_template = ~tmpl_reg.unmatched
+    tri = np.where(on_template, tmpl_reg.face_indices, 0)
+    marker_vertices = np.where(on_template[:, None], template.faces[tri], -1)
+    marker_weights = np.where(on_template[:, None], tmpl_reg.barycentric, 0.0)
+
+    t = time.perf_counter()
+    registered = np.empty((K, template.n_vertices, 3))
+    distances = np.empty(K)
+    for i in tqdm(range(K), desc="template -> scans", disable=not progress, leave=False):
+        reg = registrations[i]
+        skin = (reg.surface_points - reg.translation) @ reg.rotation  # skin under each marker, mocap frame
+        usable = on_template & ~reg.unmatched
+        targets = np.where(usable[:, None], skin, np.nan)
+        result = register_template_to_scan(
+            tmpl_mocap, marker_vertices[on_template], marker_weights[on_template], scans_mocap[i],
+            targets[on_template],
+        )
+        registered[i] = result.vertices
+        distances[i] = result.mean_distance_mm
+        report["scans"][i]["large_scale_mm"] = result.mean_distance_mm
+        report["scans"][i]["matched_fraction"] = float(result.matched.mean())
+    timings["large_scale_registration_s"] = time.perf_counter() - t
+
+    if refine and K > 1:
+        from .refine_registration import refine_registration
+
+        t = time.perf_counter()
+        refined = refine_registration(registered, template.faces, scans_mocap)
+        registered = refined.refined
+        timings["fine_scale_registration_s"] = time.perf_counter() - t
+        for i in range(K):
+            sq, _, _ = igl.point_mesh_squared_distance(registered[i], scans_mocap[i].vertices, scans_mocap[i].faces)
+            d = np.sqrt(sq)
+            distances[i] = float(np.mean(d[d < 5.0])) if np.any(d < 5.0) else float("nan")
+            report["scans"][i]["fine_scale_mm"] = distances[i]
+        flagged.update(int(i) for i in getattr(refined, "flagged", []))
+
+    # section 7: bases fitted to their frames' markers (skin under each marker)
+    t = time.perf_counter()
+    fit_rows = on_template
+    normals = np.stack([igl.per_vertex_normals(registered[i], template.faces) for i in range(K)])
+    mv, mw = marker_vertices[fit_rows], marker_weights[fit_rows]
+    marker_normals = np.einsum("mj,kmjc->kmc", mw, normals[:, mv])
+    marker_normals /= np.linalg.norm(marker_normals, axis=2, keepdims=True)
+    skin_targets = X[:, fit_rows] - marker_offset_mm * marker_normals
+    bases, change = fit_bases_to_markers(registered, template.faces, mv, mw, skin_targets)
+    timings["fit_bases_s"] = time.perf_counter() - t
+    for i in range(K):
+        report["scans"][i]["basis_fit_change_mm"] = float(np.mean(change[i]))
+        if not np.isfinite(distances[i]) or distances[i] > flag_threshold_mm:
+            flagged.add(i)
+    report["timings"] = timings
+    report["flagged"] = sorted(flagged)
+    return RegisteredScans(
+        template=template,
+        bases=bases,
+        basis_markers=X,
+        output_from_mocap=output_from_mocap,
+        marker_vertices=marker_vertices,
+        marker_weights=marker_weights,
+        registration_mm=distances,
+        flagged=sorted(flagged),
+        report=report,
+    )
