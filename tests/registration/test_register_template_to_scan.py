@@ -1,0 +1,46 @@
+import numpy as np
+import pytest
+
+from facecap.errors import InputError
+from facecap.registration.register_template_to_scan import register_template_to_scan
+from facecap.synth import generate_performance
+from facecap.synth.scan_expression import scan_expression
+
+
+@pytest.fixture(scope="module")
+def setup():
+    case = generate_performance(n_frames=90, seed=2, n_markers=70)
+    frame = int(np.argmax(np.abs(case.truth_vertices - case.truth_vertices[0]).mean(axis=(1, 2))))
+    truth = case.truth_vertices[frame].astype(np.float64)
+    scanned = scan_expression(truth, case.scan.faces, seed=1, target_vertices=15000, scanner_from_face=np.eye(4))
+    mv = case.marker_vertices
+    return case, truth, scanned.mesh, np.stack([mv] * 3, 1), np.tile([1.0, 0.0, 0.0], (mv.size, 1))
+
+
+def test_template_lands_on_the_scan_and_nearer_the_truth(setup):
+    case, truth, scan, idx, w = setup
+    result = register_template_to_scan(case.scan, idx, w, scan, truth[idx[:, 0]])
+    assert result.mean_distance_mm < 0.2  # the bar: registration residual to the scan surface
+    assert result.matched.mean() > 0.4  # the scanner sees the front of the face, not the ears and neck
+    assert result.marker_residual_mm.max() < 0.05
+    before = np.linalg.norm(case.scan.vertices - truth, axis=1).mean()
+    after = np.linalg.norm(result.vertices - truth, axis=1).mean()
+    assert after < 0.4 * before
+    assert not result.flipped_scan_normals
+
+
+def test_flipped_scan_normals_are_detected_and_handled(setup):
+    case, truth, scan, idx, w = setup
+    flipped = scan.with_vertices(scan.vertices)
+    object.__setattr__(flipped, "faces", np.ascontiguousarray(scan.faces[:, ::-1]))
+    result = register_template_to_scan(case.scan, idx, w, flipped, truth[idx[:, 0]])
+    assert result.flipped_scan_normals
+    assert result.mean_distance_mm < 0.2
+
+
+def test_too_few_visible_markers(setup):
+    case, truth, scan, idx, w = setup
+    targets = np.full((idx.shape[0], 3), np.nan)
+    targets[:2] = truth[idx[:2, 0]]
+    with pytest.raises(InputError, match="at least 3"):
+        register_template_to_scan(case.scan, idx, w, scan, targets)
