@@ -9,6 +9,7 @@ import igl
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from ..errors import InputError, MeshError
@@ -85,12 +86,8 @@ def _as_rigid(T: Any, *, name: str) -> FloatArray:
 
 
 def _boundary_edges(F: IntArray) -> IntArray:
-    """(b, 2) edges used by exactly one triangle."""
-    E = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    n = int(F.max()) + 1
-    key = np.minimum(E[:, 0], E[:, 1]) * n + np.maximum(E[:, 0], E[:, 1])
-    _, inverse, counts = np.unique(key, return_inverse=True, return_counts=True)
-    return E[counts[inverse] == 1]
+    """(b, 2) edges used by exactly one triangle, in the triangles' winding (libigl)."""
+    return np.ascontiguousarray(igl.boundary_facets(F)[0], dtype=np.int64)
 
 
 def _outer_boundary(V: FloatArray, F: IntArray) -> IntArray:
@@ -106,14 +103,15 @@ def _outer_boundary(V: FloatArray, F: IntArray) -> IntArray:
     return E[labels[E[:, 0]] == int(np.argmax(per_loop))]
 
 
-def _largest_piece(F: IntArray, n: int) -> IntArray:
-    """Faces of the connected piece with the most faces."""
+def _drop_specks(F: IntArray, n: int, *, min_fraction: float = 0.01) -> IntArray:
+    """Faces of the connected pieces holding at least ``min_fraction`` of all faces."""
     rows = np.concatenate([F[:, 0], F[:, 1]])
     cols = np.concatenate([F[:, 1], F[:, 2]])
     G = sp.coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
     _, labels = connected_components(G, directed=False)
     face_label = labels[F[:, 0]]
-    return F[face_label == int(np.argmax(np.bincount(face_label)))]
+    sizes = np.bincount(face_label)
+    return F[sizes[face_label] >= min_fraction * F.shape[0]]
 
 
 def _range_image(
@@ -175,7 +173,8 @@ def scan_expression(
     than ``max_incidence_deg`` from the ray, triangles that bridge a depth
     jump, and a band of ``crop_mm`` along the rim (the outer boundary) of the
     scanned mesh. It then punches round holes (specular spots, hair) until
-    ``hole_fraction`` of the area is gone, keeps the largest connected piece,
+    ``hole_fraction`` of the area is gone, drops specks (pieces with under 1 %
+    of the triangles),
     moves each vertex along the surface normal by Gaussian noise, and expresses
     the result in the scanner's own frame.
 
@@ -187,9 +186,11 @@ def scan_expression(
         Its triangles, consistently oriented; the scanner sees their front
         side (normals towards it).
     target_vertices : int or None, optional
-        Approximate vertex count of the range image before the crop and the
-        holes (they remove a few per cent). None (default): three times
-        ``n``. The grid pitch is ``sqrt(projected area / target_vertices)``.
+        Approximate vertex count of the scan before the holes (which
+        remove about ``hole_fraction`` more). None (default): three times
+        ``n``. A coarse range image measures how much of the view survives
+        the incidence limit and the crop; the grid pitch is then set so that
+        about this many samples do.
     seed : int, default 0
         Seeds the grid offset and roll, the holes, the noise and the random
         scanner frame (independent streams: changing ``hole_fraction`` keeps
@@ -338,9 +339,8 @@ def scan_expression(
         C = points[T].mean(axis=1)
         A = 0.5 * np.linalg.norm(np.cross(points[T[:, 1]] - points[T[:, 0]], points[T[:, 2]] - points[T[:, 0]]), axis=1)
         used = np.unique(T)
-        edge = _boundary_edges(T)
-        sq, _, _ = igl.point_mesh_squared_distance(points[used], points, edge)
-        clearance = np.sqrt(sq)
+        rim_points = points[np.unique(_boundary_edges(T))]
+        clearance, _ = cKDTree(rim_points).query(points[used])
         goal = float(hole_fraction) * A.sum()
         removed = np.zeros(T.shape[0], dtype=bool)
         centers, radii = [], []
@@ -360,7 +360,7 @@ def scan_expression(
         hole_radii = np.array(radii)
 
     noise = rng_noise.normal(0.0, noise_mm, hit.size) if noise_mm > 0 else np.zeros(hit.size)
-    T = _largest_piece(T, hit.size)
+    T = _drop_specks(T, hit.size)
     keep = np.unique(T)
     new_index = np.full(hit.size, -1, dtype=np.int64)
     new_index[keep] = np.arange(keep.size)
