@@ -3,6 +3,17 @@
 from __future__ import annotations
 
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
+from .register_scans import RegisteredScans, register_scans
+from .register_template_to_scan import TemplateRegistration, register_template_to_scan
 from .rigid_icp import IcpResult, rigid_icp
 
-__all__ = ["IcpResult", "MarkerRegistration", "register_markers_to_scan", "rigid_icp"]
+__all__ = [
+    "IcpResult",
+    "MarkerRegistration",
+    "RegisteredScans",
+    "TemplateRegistration",
+    "register_markers_to_scan",
+    "register_scans",
+    "register_template_to_scan",
+    "rigid_icp",
+]

@@ -6,17 +6,20 @@ from .expression_curves import EXPRESSION_PRESETS, smooth_expression_curves
 from .generate_performance import SyntheticCase, generate_performance
 from .ict_sample import IctSample, bundled_path, load_ict_sample
 from .marker_layout import choose_marker_vertices
+from .scan_expression import ScannedExpression, scan_expression
 from .write_synthetic_case import CaseFiles, write_synthetic_case
 
 __all__ = [
     "EXPRESSION_PRESETS",
     "CaseFiles",
     "IctSample",
+    "ScannedExpression",
     "SyntheticCase",
     "bundled_path",
     "choose_marker_vertices",
     "generate_performance",
     "load_ict_sample",
+    "scan_expression",
     "smooth_expression_curves",
     "write_synthetic_case",
 ]
