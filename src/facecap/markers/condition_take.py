@@ -51,6 +51,7 @@ def condition_take(
     stabilize: bool | Sequence[str] = False,
     smooth: bool = True,
     preferred_stable: Sequence[str] = (),
+    head_motion_sigma_s: float = 0.05,
 ) -> ConditionedTake:
     """Fill gaps, optionally remove head motion, then filter (Bickel 2007, section 3).
 
@@ -67,6 +68,13 @@ def condition_take(
         Markers to prefer for automatic stabilisation when they are rigid
         (markers not in the map: head bands and reference markers), see
         :func:`auto_stabilize`.
+    head_motion_sigma_s : float, default 0.05
+        Half-width (seconds) of the Savitzky-Golay cubic smoothing of the
+        per-frame stabilising transform before it is applied. Each frame's
+        rigid fit to a handful of noisy stable markers jitters by a few tenths
+        of a degree, which moves the whole face; head motion is smoother than
+        that, and local cubic fits follow even a fast nod. 0 applies the raw
+        per-frame fits.
 
     Returns
     -------
@@ -93,6 +101,8 @@ def condition_take(
             if unknown:
                 raise MarkerError(f"--stabilize names markers not in the take: {unknown}", path=markers.source_path)
             stab = stabilize_head(P, rest_frame=rest_frame, stable_markers=[index[s] for s in stabilize])
+        if head_motion_sigma_s > 0:
+            stab = _smooth_stabilization(stab, filled.positions, head_motion_sigma_s * markers.rate, rest_frame)
         P = stab.positions
     if smooth:
         P = bilateral_filter(P, rate=markers.rate, rest_frame=rest_frame)
@@ -125,3 +135,41 @@ def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> 
         if np.nanmedian(band.residual_rms) <= 1.5 * np.nanmedian(auto.residual_rms) + 0.1:
             return band
     return auto
+
+
+def _smooth_stabilization(stab: Stabilization, positions: np.ndarray, sigma_frames: float,
+                          rest_frame: int) -> Stabilization:
+    """Low-pass the stabilising rigid transforms over time and re-apply them to ``positions``.
+
+    The residual is recomputed against the rest frame's stable markers, which
+    every frame is aligned to.
+    """
+    from scipy.signal import savgol_filter
+    from scipy.spatial.transform import Rotation
+
+    R, t = stab.rotations, stab.translations
+    ok = np.all(np.isfinite(R), axis=(1, 2)) & np.all(np.isfinite(t), axis=1)
+    if ok.sum() < 3:
+        return stab
+    frames = np.arange(len(R))
+    idx = np.flatnonzero(ok)
+    # rotation vectors relative to the mean rotation stay small and continuous
+    mean = Rotation.from_matrix(R[ok]).mean()
+    rv = (mean.inv() * Rotation.from_matrix(R[ok])).as_rotvec()
+    rv = np.stack([np.interp(frames, idx, rv[:, k]) for k in range(3)], axis=1)
+    tt = np.stack([np.interp(frames, idx, t[ok, k]) for k in range(3)], axis=1)
+    # Savitzky-Golay (local cubic fits) rather than a Gaussian: it removes the
+    # fit noise but follows a fast nod without flattening its peaks
+    window = max(5, int(round(2 * sigma_frames)) * 2 + 1)
+    if window >= len(R):
+        return stab
+    rv = savgol_filter(rv, window, 3, axis=0, mode="interp")
+    tt = savgol_filter(tt, window, 3, axis=0, mode="interp")
+    R_s = (mean * Rotation.from_rotvec(rv)).as_matrix()
+    moved = np.einsum("tij,tkj->tki", R_s, positions) + tt[:, None]
+    stable = stab.stable_markers
+    target = stab.positions[rest_frame, stable]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # frames with stable markers in gaps
+        residual = np.sqrt(np.nanmean(np.sum((moved[:, stable] - target) ** 2, axis=2), axis=1))
+    return stab._replace(positions=moved, rotations=R_s, translations=tt, residual_rms=residual)

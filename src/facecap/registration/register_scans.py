@@ -120,7 +120,8 @@ def register_scans(
     t = time.perf_counter()
     registrations = []
     for i, scan in enumerate(tqdm(scans, desc="markers -> scans", disable=not progress, leave=False)):
-        reg = register_markers_to_scan(X[i], scan, subspace=X, marker_offset_mm=marker_offset_mm)
+        # the markers cover less of the head than a scan: only a units mix-up (x10, x25.4) is an error
+        reg = register_markers_to_scan(X[i], scan, subspace=X, marker_offset_mm=marker_offset_mm, size_tolerance=1.0)
         registrations.append(reg)
         matched = int((~reg.unmatched).sum())
         entry = {
@@ -150,7 +151,7 @@ def register_scans(
         template = scans[0]
     else:
         tmpl_reg = register_markers_to_scan(np.asarray(template_markers, dtype=np.float64), template, subspace=X,
-                                            marker_offset_mm=marker_offset_mm)
+                                            marker_offset_mm=marker_offset_mm, size_tolerance=1.0)
         tmpl_mocap = _to_mocap(template, tmpl_reg)
         output_from_mocap = np.eye(4)
         output_from_mocap[:3, :3], output_from_mocap[:3, 3] = tmpl_reg.rotation, tmpl_reg.translation
