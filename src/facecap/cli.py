@@ -171,7 +171,8 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--template", default=None, help="mesh giving the output topology (default: the first scan)")
     p.add_argument("--template-units", default="mm", help="length unit of the template file [mm]")
     p.add_argument("--marker-offset", type=float, default=1.5, help="marker centre height above the skin, mm [1.5]")
-    p.add_argument("--no-refine", action="store_true", help="skip the fine-scale (optical flow) registration")
+    p.add_argument("--refine", action="store_true",
+                   help="run the fine-scale (optical flow) registration of section 6.2 (experimental)")
     p.add_argument("--out", required=True, help="bases folder")
     p.set_defaults(func=_cmd_register_scans)
 
@@ -191,7 +192,7 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--template", default=None)
     p.add_argument("--template-units", default="mm")
     p.add_argument("--marker-offset", type=float, default=1.5)
-    p.add_argument("--no-refine", action="store_true")
+    p.add_argument("--refine", action="store_true", help="fine-scale registration (experimental)")
     p.add_argument("--export", default="")
     p.add_argument("--out", required=True, help="output folder (holds plan.json, bases/, animation/)")
     p.set_defaults(func=_cmd_scans_pipeline)
@@ -217,7 +218,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
 
     report = register_planned_scans(args.plan, args.markers, args.scans, args.out, template_path=args.template,
                                     scan_unit=args.scan_units, template_unit=args.template_units,
-                                    marker_offset_mm=args.marker_offset, refine=not args.no_refine,
+                                    marker_offset_mm=args.marker_offset, refine=args.refine,
                                     progress=not args.quiet)
     if not args.quiet:
         reg = report["registration_mm"]
@@ -250,7 +251,7 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
                    progress=not args.quiet)
     register_planned_scans(plan_path, args.markers, args.scans, out / "bases", template_path=args.template,
                            scan_unit=args.scan_units, template_unit=args.template_units,
-                           marker_offset_mm=args.marker_offset, refine=not args.no_refine, progress=not args.quiet)
+                           marker_offset_mm=args.marker_offset, refine=args.refine, progress=not args.quiet)
     exports = [e.strip().lower() for e in args.export.split(",") if e.strip()]
     report = blend_take(out / "bases", args.markers, out / "animation", exports=exports, progress=not args.quiet)
     if not args.quiet:

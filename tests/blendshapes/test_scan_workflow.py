@@ -37,7 +37,7 @@ def test_plan_register_blend(workflow):
     errors = plan["error_after_each_mm"]
     assert all(b <= a + 1e-9 for a, b in zip(errors, errors[1:]))  # monotone, as in the paper's Fig. 8
     assert main(["-q", "register-scans", "--plan", str(root / "plan.json"), "--markers", str(files.markers),
-                 "--scans", *scans, "--template", str(files.scan), "--out", str(root / "bases"), "--no-refine"]) == 0
+                 "--scans", *scans, "--template", str(files.scan), "--out", str(root / "bases")]) == 0
     report = json.loads((root / "bases" / "bases.json").read_text())["report"]
     assert max(report["registration_mm"]) < 0.2
     assert main(["-q", "blend", "--bases", str(root / "bases"), "--markers", str(files.markers),

@@ -1,69 +1,209 @@
+"""Tests for facecap.synth.generate_performance: a synthetic take against the truth that made it."""
+
+import igl
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError
-from facecap.synth.generate_performance import generate_performance, vertex_normals_at
+from facecap.synth.generate_performance import (
+    SyntheticCase,
+    generate_performance,
+    vertex_normals_at,
+)
 from facecap.synth.ict_sample import load_ict_sample
+from facecap.synth.marker_layout import animface_marker_map, boundary_vertices
 
 
 @pytest.fixture(scope="module")
-def case():
+def case() -> SyntheticCase:
     return generate_performance(n_frames=200, seed=4)
+
+
+def _apply(T: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """Rigid transforms (T, 4, 4) applied to points (T, k, 3)."""
+    return np.einsum("tij,tkj->tki", T[:, :3, :3], P) + T[:, None, :3, 3]
+
+
+def _runs(mask: np.ndarray) -> np.ndarray:
+    """Lengths of the runs of True down each column of a (T, M) mask."""
+    padded = np.pad(mask, ((1, 1), (0, 0))).astype(np.int8)
+    d = np.diff(padded, axis=0)
+    starts, ends = np.nonzero(d.T == 1), np.nonzero(d.T == -1)
+    return ends[1] - starts[1]
 
 
 def test_frame_zero_is_the_scan_and_truth_follows_the_weights(case):
     s = load_ict_sample()
-    np.testing.assert_allclose(case.truth_vertices[0], case.scan.vertices, atol=1e-4)
-    t = 120
-    expected = case.scan.vertices + np.tensordot(case.weights[t], s.expression_deltas.astype(np.float64), axes=1)
-    np.testing.assert_allclose(case.truth_vertices[t], expected, atol=1e-3)
+    assert case.truth_vertices.dtype == np.float32 and case.truth_vertices.shape == (200, 9409, 3)
+    assert np.all(case.weights[0] == 0)
+    np.testing.assert_array_equal(case.truth_vertices[0], case.scan.vertices.astype(np.float32))
+    for t in (60, 120, 199):
+        expected = case.scan.vertices + np.tensordot(case.weights[t], s.expression_deltas, axes=1)
+        np.testing.assert_allclose(case.truth_vertices[t], expected, atol=2e-4)
+    assert case.weights.max() > 0.5  # a real performance, not a twitch
+
+
+def test_vertex_normals_match_libigl_area_weighted_normals(case):
+    F = case.scan.faces
+    mv = case.marker_vertices
+    frames = case.truth_vertices[[0, 77, 150]].astype(np.float64)
+    ours = vertex_normals_at(frames, F, mv)
+    for k, V in enumerate(frames):
+        ref = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)[mv]
+        np.testing.assert_allclose(ours[k], ref, atol=1e-9)
+        np.testing.assert_allclose(vertex_normals_at(V, F, mv), ref, atol=1e-9)
 
 
 def test_markers_are_the_truth_plus_offset_seen_through_head_and_mocap_frames(case):
-    # undo the mocap frame and the head motion: the noiseless markers land 1.5 mm above the skin
+    # undo the mocap frame and the head motion: the noiseless markers land 1.5 mm above the skin,
+    # along the area-weighted normal of the deformed surface (libigl as the reference)
     world = case.mocap_from_scan[None] @ case.head_pose
-    inv = np.linalg.inv(world)
-    P = np.einsum("tij,tkj->tki", inv[:, :3, :3], case.noiseless_markers) + inv[:, None, :3, 3]
+    P = _apply(np.linalg.inv(world), case.noiseless_markers)
     mv = case.marker_vertices
-    skin = case.truth_vertices[:, mv].astype(np.float64)
-    normals = vertex_normals_at(case.truth_vertices, case.scan.faces, mv)
-    np.testing.assert_allclose(P[:, : mv.size], skin + 1.5 * normals, atol=1e-4)
+    F = case.scan.faces
+    for t in (0, 33, 199):
+        V = case.truth_vertices[t].astype(np.float64)
+        N = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)[mv]
+        np.testing.assert_allclose(P[t, : mv.size], V[mv] + 1.5 * N, atol=1e-7)
+    # and the head band is where the case says it is, rigid with the head
+    np.testing.assert_allclose(P[:, mv.size :], np.broadcast_to(case.headband_points, P[:, mv.size :].shape),
+                               atol=1e-7)
 
 
-def test_noise_and_gaps_have_the_requested_size(case):
+def test_noise_and_gaps_have_the_requested_size_and_shape(case):
     observed = case.markers.positions
-    gaps = np.isnan(observed).any(axis=2)
-    assert 0.015 < gaps.mean() < 0.03
+    gaps = case.markers.gap_mask
+    assert np.isnan(observed).any(axis=2).sum() == np.isnan(observed).all(axis=2).sum()  # whole samples
+    assert gaps.sum() == round(0.02 * gaps.size)
     assert not gaps[0].any() and not gaps.all(axis=1).any()
+    runs = _runs(gaps)
+    assert 3 <= np.median(runs) <= 30 and runs.max() <= 60  # occlusion bursts, not salt and pepper
     noise = (observed - case.noiseless_markers)[~gaps]
     assert np.std(noise) == pytest.approx(0.2, rel=0.1)
+    assert abs(np.mean(noise)) < 0.02
 
 
-def test_headband_markers_are_rigid_and_not_in_the_map(case):
+def test_noise_and_gaps_are_independent_streams_of_the_seed(case):
+    clean = generate_performance(n_frames=200, seed=4, noise_mm=0.0, gap_fraction=0.0)
+    np.testing.assert_array_equal(clean.markers.positions, case.noiseless_markers)
+    np.testing.assert_array_equal(clean.truth_vertices, case.truth_vertices)
+    np.testing.assert_array_equal(clean.head_pose, case.head_pose)
+    more_gaps = generate_performance(n_frames=200, seed=4, gap_fraction=0.1)
+    assert more_gaps.markers.gap_mask.mean() == pytest.approx(0.1, abs=1e-3)
+
+
+def test_headband_markers_are_rigid_off_the_forehead_and_not_in_the_map(case):
     labels = case.markers.labels
-    band = [i for i, s in enumerate(labels) if s.startswith("HB")]
-    assert len(band) == 4 and not set(labels[i] for i in band) & set(case.correspondence)
-    P = case.noiseless_markers[:, band]
+    assert case.headband_labels == ("HB0", "HB1", "HB2", "HB3")
+    assert labels[-4:] == case.headband_labels and not set(case.headband_labels) & set(case.correspondence)
+    P = case.noiseless_markers[:, -4:]
     d = np.linalg.norm(P[:, :, None] - P[:, None], axis=3)
     np.testing.assert_allclose(d, np.broadcast_to(d[0], d.shape), atol=1e-9)
+    # about 15 mm off the skin, above the brows, spread across the head (not collinear)
+    sq, _, _ = igl.point_mesh_squared_distance(case.headband_points, case.scan.vertices, case.scan.faces)
+    assert np.all((np.sqrt(sq) > 12.0) & (np.sqrt(sq) <= 15.0 + 1e-9))
+    brow_top = case.scan.vertices[load_ict_sample().landmarks[17:27], 1].max()
+    assert np.all(case.headband_points[:, 1] > brow_top)
+    assert np.linalg.svd(case.headband_points - case.headband_points.mean(0), compute_uv=False)[1] > 10.0
 
 
 def test_head_motion_and_mocap_frame_are_rigid_transforms(case):
-    for T in [case.mocap_from_scan, *case.head_pose[::50]]:
+    for T in [case.mocap_from_scan, *case.head_pose[::25]]:
         R = T[:3, :3]
         np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
         assert np.linalg.det(R) == pytest.approx(1.0)
-    angles = np.degrees(np.arccos(np.clip((np.trace(case.head_pose[:, :3, :3], axis1=1, axis2=2) - 1) / 2, -1, 1)))
-    assert 0.5 < angles.max() <= 4.0 + 1e-9
+        np.testing.assert_array_equal(T[3], [0, 0, 0, 1])
+    np.testing.assert_array_equal(case.head_pose[0], np.eye(4))
+    angles = np.degrees(Rotation.from_matrix(case.head_pose[:, :3, :3]).magnitude())
+    assert 0.3 < angles.max() <= 4.0 + 1e-9
+    # smooth: no frame-to-frame jump bigger than a slow head turn allows (0.6 Hz, 4 deg)
+    assert np.abs(np.diff(angles)).max() < 0.5
 
 
-def test_reproducible_and_explicit_curves():
+def test_head_motion_peaks_at_the_requested_amplitude_over_ten_seconds():
+    long = generate_performance(n_frames=600, seed=1, n_markers=10, head_rotation_deg=6.0, head_translation_mm=0.0,
+                                noise_mm=0.0, gap_fraction=0.0)
+    angles = np.degrees(Rotation.from_matrix(long.head_pose[:, :3, :3]).magnitude())
+    assert angles.max() == pytest.approx(6.0, abs=1e-9)
+    shift = generate_performance(n_frames=600, seed=1, n_markers=10, head_rotation_deg=0.0, head_translation_mm=3.0,
+                                 noise_mm=0.0, gap_fraction=0.0)
+    np.testing.assert_allclose(shift.head_pose[:, :3, :3], np.broadcast_to(np.eye(3), (600, 3, 3)), atol=0)
+    assert np.linalg.norm(shift.head_pose[:, :3, 3], axis=1).max() == pytest.approx(3.0, abs=1e-9)
+
+
+def test_default_layout_is_on_the_front_of_the_face_and_off_the_boundary(case):
+    s = load_ict_sample()
+    mv = case.marker_vertices
+    assert mv.size == 90 and np.unique(mv).size == 90
+    assert case.face_labels == tuple(f"M{i:03d}" for i in range(90))
+    assert case.correspondence == {f"M{i:03d}": int(v) for i, v in enumerate(mv)}
+    assert not np.any(s.region_labels[mv] == s.region_names.index("other"))
+    assert not boundary_vertices(case.scan.faces, case.scan.n_vertices)[mv].any()
+
+
+def test_other_layouts_identity_and_mocap_frame():
+    s = load_ict_sample()
+    animface = generate_performance(n_frames=20, marker_layout="animface", headband_markers=0, seed=3)
+    assert animface.correspondence == animface_marker_map() and animface.markers.n_markers == 41
+    chosen = np.array([10, 500, 3000])
+    X = np.eye(4)
+    X[:3, :3] = Rotation.from_rotvec([0.1, -0.7, 0.3]).as_matrix()
+    X[:3, 3] = [10.0, -20.0, 900.0]
+    a = generate_performance(n_frames=15, marker_layout=chosen, identity=[1.0, -0.5], mocap_frame=X, seed=2,
+                             noise_mm=0.0, gap_fraction=0.0, head_rotation_deg=0.0, head_translation_mm=0.0)
+    np.testing.assert_array_equal(a.marker_vertices, chosen)
+    np.testing.assert_array_equal(a.mocap_from_scan, X)
+    np.testing.assert_allclose(a.scan.vertices, s.face([1.0, -0.5]).vertices, atol=0)
+    # no head motion: frame 0 markers are X applied to the scan points 1.5 mm along the scan normals
+    # (the truth, and so the markers, come from the scan rounded to float32)
+    V32 = a.scan.vertices.astype(np.float32).astype(np.float64)
+    N = vertex_normals_at(V32, a.scan.faces, chosen)
+    expected = (V32[chosen] + 1.5 * N) @ X[:3, :3].T + X[:3, 3]
+    np.testing.assert_allclose(a.markers.positions[0, :3], expected, atol=1e-9)
+    named = generate_performance(n_frames=5, marker_layout={"chin": 963, "nose": 1307}, headband_markers=2)
+    assert named.markers.labels == ("chin", "nose", "HB0", "HB1")
+
+
+def test_reproducible_seed_dependent_and_explicit_curves():
     a = generate_performance(n_frames=30, seed=9, n_markers=40)
     b = generate_performance(n_frames=30, seed=9, n_markers=40)
     np.testing.assert_array_equal(a.markers.positions, b.markers.positions)
-    with pytest.raises(InputError, match="curves"):
-        generate_performance(n_frames=30, curves=np.zeros((10, 53)))
-    still = generate_performance(n_frames=30, curves=np.zeros((30, 53)), noise_mm=0, gap_fraction=0,
+    np.testing.assert_array_equal(a.marker_vertices, b.marker_vertices)
+    c = generate_performance(n_frames=30, seed=10, n_markers=40)
+    assert not np.array_equal(a.marker_vertices, c.marker_vertices)
+    still = generate_performance(curves=np.zeros((30, 53)), noise_mm=0, gap_fraction=0,
                                  head_rotation_deg=0, head_translation_mm=0)
-    np.testing.assert_allclose(still.truth_vertices, np.broadcast_to(still.scan.vertices, still.truth_vertices.shape),
-                               atol=1e-4)
+    assert still.truth_vertices.shape[0] == 30
+    np.testing.assert_array_equal(still.truth_vertices,
+                                  np.broadcast_to(still.scan.vertices.astype(np.float32), still.truth_vertices.shape))
+    # a still face in a still head: every marker stands still
+    np.testing.assert_allclose(still.markers.positions, np.broadcast_to(still.markers.positions[0], (30, 94, 3)),
+                               atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"n_frames": 30, "curves": np.zeros((10, 53))}, "curves"),
+        ({"curves": np.full((10, 53), np.nan)}, "curves"),
+        ({"curves": np.zeros((10, 3))}, "curves"),
+        ({"n_frames": 0}, "n_frames"),
+        ({"gap_fraction": 0.8}, "gap_fraction"),
+        ({"noise_mm": -1.0}, "noise_mm"),
+        ({"rate": 0}, "rate"),
+        ({"headband_markers": 40}, "headband_markers"),
+        ({"marker_layout": "vicon"}, "marker_layout"),
+        ({"marker_layout": np.array([1, 1, 2])}, "marker_layout"),
+        ({"marker_layout": np.array([1, 99999])}, "marker_layout"),
+        ({"marker_layout": {"HB0": 5, "a": 6}}, "HB0"),
+        ({"marker_layout": np.array([1, 2, 3]), "n_markers": 5}, "n_markers"),
+        ({"mocap_frame": np.diag([1.0, 1.0, -1.0, 1.0])}, "mocap_frame"),
+        ({"mocap_frame": np.eye(3)}, "mocap_frame"),
+        ({"identity": np.ones(20)}, "identity"),
+        ({"sample": "ict"}, "sample"),
+    ],
+)
+def test_bad_options_are_clear_errors(kwargs, match):
+    with pytest.raises(InputError, match=match):
+        generate_performance(**kwargs)

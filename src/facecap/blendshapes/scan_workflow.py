@@ -110,7 +110,7 @@ def register_planned_scans(
     scan_unit: str = "mm",
     template_unit: str = "mm",
     marker_offset_mm: float = 1.5,
-    refine: bool = True,
+    refine: bool = False,
     marker_unit: str | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:

@@ -99,7 +99,7 @@ def register_markers_to_scan(
     max_residual_mm: float = 2.0,
     tolerance_mm: float = 1e-4,
     refine_rigid: bool = True,
-    size_tolerance: float | None = 0.2,
+    size_tolerance: float | None = 1.0,
 ) -> MarkerRegistration:
     """Register the markers of one mocap frame onto a face scan of the same expression (Huang et al. 2011, sec. 5).
 
@@ -156,7 +156,7 @@ def register_markers_to_scan(
         keeps the rigid error that the expression difference caused in
         eq. (5); on the synthetic tests the joint step cuts the rotation
         error about fivefold. Only used with a ``subspace``.
-    size_tolerance : float or None, default 0.2
+    size_tolerance : float or None, default 1.0
         Raise if the scan's size differs from the markers' by more than this
         fraction (a scan in other units); None skips the check.
 

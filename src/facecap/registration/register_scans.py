@@ -72,7 +72,7 @@ def register_scans(
     template: Mesh | None = None,
     template_markers: np.ndarray | None = None,
     marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
-    refine: bool = True,
+    refine: bool = False,
     flag_threshold_mm: float = 0.2,
     progress: bool = True,
 ) -> RegisteredScans:
@@ -93,8 +93,10 @@ def register_scans(
         template to place the markers on it. Required with ``template``.
     marker_offset_mm : float, default 1.5
         Marker centre height above the skin.
-    refine : bool, default True
-        Run the fine-scale registration (section 6.2).
+    refine : bool, default False
+        Run the fine-scale registration (section 6.2). Off by default: on the
+        generated ICT scans (smooth, few curvature features) it has not yet
+        been shown to improve correspondence (see docs/scan_workflow.md).
     flag_threshold_mm : float, default 0.2
         Scans whose mean distance to their surface stays above this are flagged.
     progress : bool, default True
@@ -183,14 +185,16 @@ def register_scans(
 
         t = time.perf_counter()
         refined = refine_registration(registered, template.faces, scans_mocap)
-        registered = refined.refined
+        registered = refined.vertices
         timings["fine_scale_registration_s"] = time.perf_counter() - t
         for i in range(K):
             sq, _, _ = igl.point_mesh_squared_distance(registered[i], scans_mocap[i].vertices, scans_mocap[i].faces)
             d = np.sqrt(sq)
             distances[i] = float(np.mean(d[d < 5.0])) if np.any(d < 5.0) else float("nan")
             report["scans"][i]["fine_scale_mm"] = distances[i]
-        flagged.update(int(i) for i in getattr(refined, "flagged", []))
+        flagged.update(int(i) for i in np.flatnonzero(refined.flagged))
+        report["fine_scale_misalignment"] = {"before": refined.misalignment_before.tolist(),
+                                             "after": refined.misalignment_after.tolist()}
 
     # section 7: bases fitted to their frames' markers (skin under each marker)
     t = time.perf_counter()

@@ -288,7 +288,7 @@ def rigid_icp(
     offset_mm: float = 0.0,
     reject_boundary: bool = True,
     tolerance_mm: float = 1e-4,
-    size_tolerance: float | None = 0.2,
+    size_tolerance: float | None = 1.0,
 ) -> IcpResult:
     """Rigidly move a point set onto a triangle surface by trimmed iterative closest points.
 
@@ -327,7 +327,7 @@ def rigid_icp(
         Drop pairs whose closest point is on a boundary edge of the target.
     tolerance_mm : float, default 1e-4
         Convergence: the last update moved no inlier further than this, mm.
-    size_tolerance : float or None, default 0.2
+    size_tolerance : float or None, default 1.0
         Raise if the RMS radius of the target surface and of the source
         points differ by more than this fraction (units mix-up); None skips
         the check.

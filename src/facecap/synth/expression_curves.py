@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
 from ..errors import InputError
+from ..typing import FloatArray
+from ..validate import as_positive
 
-__all__ = ["smooth_expression_curves", "EXPRESSION_PRESETS"]
+__all__ = ["EXPRESSION_PRESETS", "smooth_expression_curves"]
 
 EXPRESSION_PRESETS: dict[str, dict[str, float]] = {
     "smile": {"mouthSmile_L": 0.9, "mouthSmile_R": 0.9, "cheekSquint_L": 0.5, "cheekSquint_R": 0.5,
@@ -47,34 +49,54 @@ def smooth_expression_curves(
     intensity: tuple[float, float] = (0.6, 1.0),
     blinks_per_second: float = 0.3,
     lead_in_s: float = 0.25,
-) -> np.ndarray:
+) -> FloatArray:
     """Blendshape weights over time for a plausible facial performance.
 
     A sequence of expressions from :data:`EXPRESSION_PRESETS` (smile,
-    surprise, jaw open, pucker, ...) each eases in, holds and eases out with
-    C2 ramps, overlapping its neighbours, at a random intensity; short blinks
-    (``eyeBlink_L/R`` pulses of ~0.2 s) are laid on top. Frame 0 is neutral
-    (all weights 0), matching the scan.
+    surprise, jaw open, pucker, anger, ...: a few blendshapes active at once)
+    each eases in, holds and eases out with C2 ramps, overlapping its
+    neighbours, at a random intensity; blinks (``eyeBlink_L/R`` pulses of
+    about 0.2 s, both eyes together) are laid on top. Overlapping
+    expressions add, and the sum is clipped to [0, 1]. Frame 0 is neutral
+    (all weights exactly 0), matching the scan.
 
     Parameters
     ----------
     n_frames : int
+        Number of frames T, at least 1.
     names : sequence of str
-        Blendshape names, in the order of the returned columns.
+        Blendshape names, in the order of the returned columns. Names the
+        presets do not use stay 0; preset names missing here are skipped.
     rate : float, default 60.0
-        Frame rate in Hz; curve timing is in seconds.
+        Frame rate in Hz; the timing below is in seconds.
     seed : int, default 0
+        Seed of the local random generator: same seed, same curves.
     expressions_per_second : float, default 0.6
-        How often a new expression starts.
+        Mean rate at which a new expression starts.
     intensity : (float, float), default (0.6, 1.0)
-        Range of the random scale applied to each expression's preset weights.
+        Range of the random scale applied to each expression's preset weights
+        (the presets peak at 0.8-1.0).
     blinks_per_second : float, default 0.3
+        Mean blink rate (the gap between blinks is at least 0.4 s).
     lead_in_s : float, default 0.25
-        Neutral time at the start.
+        Neutral time at the start, s.
 
     Returns
     -------
     (n_frames, len(names)) float64 array in [0, 1]
+
+    Raises
+    ------
+    InputError
+        If ``n_frames`` is not a positive integer, ``names`` is not a sequence
+        of strings, or a rate, duration or intensity is not positive/finite.
+
+    Notes
+    -----
+    The ramps use the quintic smoothstep ``s(x) = 6x^5 - 15x^4 + 10x^3``,
+    whose first and second derivatives vanish at both ends; an expression
+    with ramp-in ``a``, hold ``h`` and ramp-out ``r`` starting at ``t0`` has
+    envelope ``s((t - t0)/a) (1 - s((t - t0 - a - h)/r))``.
 
     Examples
     --------
@@ -82,8 +104,18 @@ def smooth_expression_curves(
     >>> W.shape, float(W[0].max())
     ((120, 2), 0.0)
     """
-    if n_frames < 1:
-        raise InputError(f"n_frames: expected a positive number of frames, got {n_frames}")
+    if isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or n_frames < 1:
+        raise InputError(f"n_frames: expected a positive integer, got {n_frames!r}")
+    if isinstance(names, str) or not all(isinstance(s, str) for s in names):
+        raise InputError("names: expected a sequence of blendshape names (str)")
+    rate = as_positive(rate, name="rate")
+    expressions_per_second = as_positive(expressions_per_second, name="expressions_per_second")
+    blinks_per_second = as_positive(blinks_per_second, name="blinks_per_second")
+    lead_in_s = as_positive(lead_in_s, name="lead_in_s", allow_zero=True)
+    lo, hi = (as_positive(x, name="intensity", allow_zero=True) for x in intensity)
+    if lo > hi:
+        raise InputError(f"intensity: expected (low, high) with low <= high, got {intensity!r}")
+    intensity = (lo, hi)
     rng = np.random.default_rng(seed)
     index = {s: i for i, s in enumerate(names)}
     t = np.arange(n_frames) / float(rate)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -10,11 +12,19 @@ from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
 from ..structures import MarkerSequence, Mesh
+from ..typing import FloatArray, IntArray
+from ..validate import as_faces, as_positive
 from .expression_curves import smooth_expression_curves
 from .ict_sample import IctSample, load_ict_sample
-from .marker_layout import choose_marker_vertices
+from .marker_layout import animface_marker_map, choose_marker_vertices
 
 __all__ = ["SyntheticCase", "generate_performance", "vertex_normals_at"]
+
+DEFAULT_FRAMES = 240
+DEFAULT_MARKERS = 90
+HEADBAND_OFFSET_MM = 15.0
+"""Height of the head-band markers above the skin."""
+MAX_HEADBAND_MARKERS = 16
 
 
 @dataclass(frozen=True, eq=False)
@@ -24,217 +34,436 @@ class SyntheticCase:
     Attributes
     ----------
     scan : Mesh
-        The actor's neutral face: the mesh to animate (mm).
+        The actor's neutral face: the mesh to animate (mm, ICT topology).
     markers : MarkerSequence
-        The take, in the mocap system's frame: face markers ``M000...`` and
-        head-band markers ``HB0...`` (rigid with the head, not in the map).
+        The take, in the mocap system's frame (mm): first the face markers
+        (``M000``, ``M001``, ... or the layout's own labels), then the
+        head-band markers ``HB0``, ``HB1``, ... (rigid with the head, not in
+        the map). NaN where occluded.
     correspondence : dict of str to int
         Face marker label -> scan vertex (what a user picks by hand).
     truth_vertices : (T, n, 3) float32 array, mm
-        The dense expression in the scan's frame, without head motion.
+        The dense expression in the scan's frame, without head motion:
+        ``scan + weights[t] @ expression_deltas``.
     head_pose : (T, 4, 4) float64 array
         Rigid head motion in scan coordinates (mm): the face at frame t is
-        ``head_pose[t]`` applied to ``truth_vertices[t]``.
+        ``head_pose[t]`` applied to ``truth_vertices[t]``. ``head_pose[0]`` is
+        the identity.
     mocap_from_scan : (4, 4) float64 array
         Fixed rigid transform from the scan's frame to the mocap system's.
     weights : (T, k) float64 array
-        The blendshape weights that drove the expression.
+        The blendshape weights that drove the expression (k = 53).
     marker_vertices : (M,) int64 array
-        Scan vertex under each face marker, in label order.
+        Scan vertex under each face marker, in the order of the first M labels.
     noiseless_markers : (T, M + H, 3) float64 array, mm
-        The markers before noise and gaps.
+        The markers before noise and gaps, same columns as ``markers``.
+    headband_points : (H, 3) float64 array, mm
+        The head-band markers in the scan's frame (they move with ``head_pose`` only).
     """
 
     scan: Mesh
     markers: MarkerSequence
     correspondence: dict[str, int]
     truth_vertices: np.ndarray
-    head_pose: np.ndarray
-    mocap_from_scan: np.ndarray
-    weights: np.ndarray
-    marker_vertices: np.ndarray
-    noiseless_markers: np.ndarray
+    head_pose: FloatArray
+    mocap_from_scan: FloatArray
+    weights: FloatArray
+    marker_vertices: IntArray
+    noiseless_markers: FloatArray
+    headband_points: FloatArray
+
+    @property
+    def n_face_markers(self) -> int:
+        """Number of face markers M (the first M columns of ``markers``)."""
+        return int(self.marker_vertices.size)
+
+    @property
+    def face_labels(self) -> tuple[str, ...]:
+        """Labels of the face markers."""
+        return self.markers.labels[: self.n_face_markers]
+
+    @property
+    def headband_labels(self) -> tuple[str, ...]:
+        """Labels of the head-band markers."""
+        return self.markers.labels[self.n_face_markers :]
 
 
-def vertex_normals_at(V: np.ndarray, F: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    """Area-weighted unit normals at some vertices, for one or many frames.
+def vertex_normals_at(V: np.ndarray, F: IntArray, vertices: IntArray) -> FloatArray:
+    """Area-weighted unit vertex normals at some vertices, for one or many frames.
+
+    Only the triangles around ``vertices`` are evaluated, so asking for a
+    hundred markers on a long take is cheap.
 
     Parameters
     ----------
-    V : (n, 3) or (T, n, 3) float array
+    V : (n, 3) or (T, n, 3) float array, mm
+        Vertex positions (one frame or a stack).
     F : (m, 3) int64 array
+        Triangles, consistently oriented.
     vertices : (k,) int64 array
+        Where the normals are wanted.
 
     Returns
     -------
     (k, 3) or (T, k, 3) float64 array
+        Unit normals; a vertex with no (or only degenerate) triangles gets NaN.
+
+    Notes
+    -----
+    ``n(v) = normalize(sum_{f ∋ v} (x_1 - x_0) × (x_2 - x_0))``: the sum of the
+    incident face normals weighted by twice their areas.
+
+    Examples
+    --------
+    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    >>> vertex_normals_at(V, np.array([[0, 1, 2]]), np.array([0])).tolist()
+    [[0.0, 0.0, 1.0]]
     """
+    X = np.asarray(V)
+    n = X.shape[-2]
+    F = as_faces(F, n)
     vertices = np.asarray(vertices, dtype=np.int64)
-    incident = np.isin(F, vertices).any(axis=1)
-    Fi = F[incident]
-    X = np.asarray(V, dtype=np.float64)
-    face_normals = np.cross(X[..., Fi[:, 1], :] - X[..., Fi[:, 0], :], X[..., Fi[:, 2], :] - X[..., Fi[:, 0], :])
-    row = np.full(V.shape[-2], -1)
+    if vertices.ndim != 1 or (vertices.size and (vertices.min() < 0 or vertices.max() >= n)):
+        raise InputError(f"vertices: expected 1-D vertex indices in 0..{n - 1}")
+    row = np.full(n, -1, dtype=np.int64)
     row[vertices] = np.arange(vertices.size)
+    Fi = F[(row[F] >= 0).any(axis=1)]
+    used, local = np.unique(Fi, return_inverse=True)
+    local = local.reshape(Fi.shape)
+    P = X[..., used, :].astype(np.float64)
+    a, b, c = P[..., local[:, 0], :], P[..., local[:, 1], :], P[..., local[:, 2], :]
+    face_normals = np.cross(b - a, c - a)  # (..., f, 3)
     r = row[Fi].ravel()
-    c = np.repeat(np.arange(Fi.shape[0]), 3)
     keep = r >= 0
-    S = sp.csr_matrix((np.ones(keep.sum()), (r[keep], c[keep])), shape=(vertices.size, Fi.shape[0]))
-    N = np.stack([(S @ face_normals[..., a].T).T for a in range(3)], axis=-1)
-    return N / np.linalg.norm(N, axis=-1, keepdims=True)
+    S = sp.csr_matrix(
+        (np.ones(int(keep.sum())), (r[keep], np.repeat(np.arange(Fi.shape[0]), 3)[keep])),
+        shape=(vertices.size, Fi.shape[0]),
+    )
+    lead = face_normals.shape[:-2]
+    flat = np.moveaxis(face_normals, -2, 0).reshape(Fi.shape[0], -1)
+    N = np.moveaxis((S @ flat).reshape((vertices.size, *lead, 3)), 0, -2)
+    length = np.linalg.norm(N, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(length > 0, N / length, np.nan)
 
 
-def _smooth_signal(rng: np.random.Generator, t: np.ndarray, n: int) -> np.ndarray:
-    """n smooth signals in [-1, 1]: sums of slow sinusoids (0.1-0.6 Hz), one per column."""
-    out = np.zeros((t.size, n))
+def _smooth_signals(rng: np.random.Generator, n_frames: int, rate: float, n: int) -> tuple[FloatArray, FloatArray]:
+    """(T, n) smooth signals, 0 at frame 0: sums of 3 slow sinusoids (0.1-0.6 Hz) each.
+
+    Also returns the same signals over ``max(T, 10 s)``, the reference for
+    scaling: short takes get proportionally less motion, not faster motion.
+    """
+    n_ref = max(n_frames, round(10.0 * rate))
+    t = np.arange(n_ref) / rate
+    out = np.zeros((n_ref, n))
     for j in range(n):
         for _ in range(3):
-            out[:, j] += rng.uniform(0.3, 1.0) * np.sin(2 * np.pi * rng.uniform(0.1, 0.6) * t + rng.uniform(0, 2 * np.pi))
-        out[:, j] /= max(float(np.abs(out[:, j]).max()), 1e-12)
-    return out
+            amp, freq, phase = rng.uniform(0.3, 1.0), rng.uniform(0.1, 0.6), rng.uniform(0, 2 * np.pi)
+            out[:, j] += amp * (np.sin(2 * np.pi * freq * t + phase) - np.sin(phase))
+    return out[:n_frames], out
 
 
-def _rigid(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, t
+def _scaled_motion(rng: np.random.Generator, n_frames: int, rate: float, amplitude: float) -> FloatArray:
+    """(T, 3) smooth vector signal, 0 at frame 0, whose norm peaks at ``amplitude`` over max(T, 10 s)."""
+    sig, ref = _smooth_signals(rng, n_frames, rate, 3)
+    peak = float(np.linalg.norm(ref, axis=1).max())
+    return sig * (amplitude / peak) if peak > 0 and amplitude > 0 else np.zeros_like(sig)
+
+
+def _as_rigid(X: Any, name: str) -> FloatArray:
+    try:
+        T = np.array(X, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(f"{name}: expected a (4, 4) rigid transform") from None
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise InputError(f"{name}: expected a finite (4, 4) rigid transform, got shape {T.shape}")
+    R = T[:3, :3]
+    if (np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0
+            or np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-12):
+        raise InputError(f"{name}: expected a rotation (orthonormal, det +1) and translation, last row 0 0 0 1")
     return T
+
+
+def _default_mocap_frame(rng: np.random.Generator) -> FloatArray:
+    """A Z-up capture volume: the head about 1.5 m up, facing a random direction."""
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler(
+        "xyz", [90.0 + rng.uniform(-10, 10), rng.uniform(-20, 20), rng.uniform(-180, 180)], degrees=True
+    ).as_matrix()
+    T[:3, 3] = [rng.uniform(-500, 500), rng.uniform(-500, 500), 1500.0]
+    return T
+
+
+def _headband(sample: IctSample, scan: Mesh, count: int, rng: np.random.Generator) -> FloatArray:
+    """(count, 3) head-band points: 15 mm off the upper forehead and temples, spread by FPS."""
+    if count == 0:
+        return np.zeros((0, 3))
+    V = scan.vertices
+    brow_top = float(V[sample.landmarks[17:27], 1].max())
+    front = V[:, 2] > float(V[sample.landmarks[[0, 16]], 2].mean())  # in front of the ears
+    band = np.flatnonzero((V[:, 1] > brow_top + 15.0) & (V[:, 1] < brow_top + 50.0) & front)
+    picks = [int(band[rng.integers(band.size)])]
+    d = np.full(band.size, np.inf)
+    for _ in range(count):
+        d = np.minimum(d, np.linalg.norm(V[band] - V[picks[-1]], axis=1))
+        picks.append(int(band[np.argmax(d)]))
+    picks = np.asarray(picks[1:], dtype=np.int64)  # drop the random seed point, keep the spread ones
+    N = vertex_normals_at(V, scan.faces, picks)
+    return V[picks] + HEADBAND_OFFSET_MM * N
+
+
+def _layout(marker_layout: Any, n_markers: int | None, sample: IctSample, scan: Mesh,
+            seed: int) -> tuple[tuple[str, ...], IntArray]:
+    n = scan.n_vertices
+    if marker_layout is None:
+        count = DEFAULT_MARKERS if n_markers is None else n_markers
+        # markers go on the front of the face: not on the ears, scalp or neck, nor under the chin
+        normals = vertex_normals_at(scan.vertices, scan.faces, np.arange(n))
+        exclude = (sample.region_labels == sample.region_names.index("other")) | (normals[:, 1] < -0.6)
+        mv = choose_marker_vertices(scan.vertices, scan.faces, sample.expression_deltas, count,
+                                    seed=seed, exclude=exclude)
+        return tuple(f"M{i:03d}" for i in range(mv.size)), mv
+    if isinstance(marker_layout, str):
+        if marker_layout != "animface":
+            raise InputError(f"marker_layout: expected 'animface', a vertex array or a label map, got {marker_layout!r}")
+        marker_layout = animface_marker_map()
+    if isinstance(marker_layout, Mapping):
+        labels = tuple(str(k) for k in marker_layout)
+        values = list(marker_layout.values())
+    else:
+        values = marker_layout
+        labels = ()
+    try:
+        mv = np.asarray(values)
+        if mv.ndim != 1 or mv.size == 0 or not np.issubdtype(mv.dtype, np.integer):
+            raise ValueError
+    except (TypeError, ValueError):
+        raise InputError("marker_layout: expected a non-empty 1-D array of vertex indices or a label -> vertex map") from None
+    mv = mv.astype(np.int64)
+    if mv.min() < 0 or mv.max() >= n:
+        raise InputError(f"marker_layout: vertex index out of range 0..{n - 1}")
+    if np.unique(mv).size != mv.size:
+        raise InputError("marker_layout: two markers on the same vertex")
+    if not labels:
+        labels = tuple(f"M{i:03d}" for i in range(mv.size))
+    if n_markers is not None and n_markers != mv.size:
+        raise InputError(f"n_markers: {n_markers} given with a layout of {mv.size} markers (leave it None)")
+    return labels, mv
+
+
+def _gaps(rng: np.random.Generator, n_frames: int, n_total: int, fraction: float) -> np.ndarray:
+    """(T, M) occlusion mask: runs of 3-30 frames, frame 0 clear, never every marker at once."""
+    missing = np.zeros((n_frames, n_total), dtype=bool)
+    target = round(fraction * n_frames * n_total)
+    if n_frames < 2 or n_total < 2:
+        return missing
+    target = min(target, (n_frames - 1) * (n_total - 1))
+    count = 0
+    per_frame = np.zeros(n_frames, dtype=np.int64)
+    for _ in range(100 * target + 100):
+        if count >= target:
+            break
+        marker = int(rng.integers(n_total))
+        start = int(rng.integers(1, n_frames))
+        frames = np.arange(start, min(n_frames, start + int(rng.integers(3, 31))))
+        frames = frames[~missing[frames, marker] & (per_frame[frames] < n_total - 1)]
+        frames = frames[: target - count]
+        missing[frames, marker] = True
+        per_frame[frames] += 1
+        count += frames.size
+    return missing
+
+
+def _count(x: Any, name: str, *, minimum: int) -> int:
+    if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < minimum:
+        raise InputError(f"{name}: expected an integer >= {minimum}, got {x!r}")
+    return int(x)
 
 
 def generate_performance(
     *,
-    n_frames: int = 240,
+    n_frames: int | None = None,
     rate: float = 60.0,
-    n_markers: int = 90,
-    identity: np.ndarray | None = None,
-    curves: np.ndarray | None = None,
-    marker_vertices: np.ndarray | None = None,
+    n_markers: int | None = None,
+    identity: Any = None,
+    curves: Any = None,
+    marker_layout: Any = None,
     marker_offset_mm: float = 1.5,
     noise_mm: float = 0.2,
     gap_fraction: float = 0.02,
     head_rotation_deg: float = 4.0,
     head_translation_mm: float = 5.0,
     headband_markers: int = 4,
+    mocap_frame: Any = None,
     seed: int = 0,
     sample: IctSample | None = None,
 ) -> SyntheticCase:
     """Generate a facial mocap take on the ICT face with dense ground truth.
 
-    The expression is ``face + weights(t) @ expression_deltas`` (smooth,
-    performance-like curves); markers sit ``marker_offset_mm`` above the skin
-    along the normal, move with the expression and the rigid head motion, are
-    seen in a different rigid frame than the scan (Z-up, a metre away), with
-    Gaussian noise and occlusion gaps, as an optical system would give them.
+    The expression is ``truth[t] = scan + weights[t] @ expression_deltas``
+    (smooth, performance-like curves; frame 0 neutral). Markers sit
+    ``marker_offset_mm`` above the skin along the vertex normal, move with
+    the expression and a smooth rigid head motion, are seen in the mocap
+    system's own rigid frame, with Gaussian noise and occlusion gaps, as an
+    optical system would give them; head-band markers ride rigidly with the
+    head.
 
     Parameters
     ----------
-    n_frames : int, default 240
+    n_frames : int, optional
+        Number of frames T (>= 1). Default: the length of ``curves``, or 240.
     rate : float, default 60.0
         Frame rate, Hz.
-    n_markers : int, default 90
-        Face markers (ignored when ``marker_vertices`` is given).
+    n_markers : int, optional
+        Face markers to place when ``marker_layout`` is None (default 90);
+        with a layout, leave None or give its length.
     identity : (k,) float array, optional
         ICT identity coefficients (k <= 8): who the actor is. Default: the
-        generic face.
-    curves : (n_frames, 53) float array, optional
-        Blendshape weights; default :func:`smooth_expression_curves`.
-    marker_vertices : (M,) int array, optional
-        Marker layout; default :func:`choose_marker_vertices`.
+        generic ICT face.
+    curves : (T, 53) float array, optional
+        Blendshape weights per frame. Default:
+        ``smooth_expression_curves(T, sample.expression_names, rate=rate, seed=seed)``.
+    marker_layout : {None, 'animface'} or (M,) int array or dict of str to int, optional
+        Where the face markers go. None: :func:`choose_marker_vertices` on
+        the front of the face (ears, scalp, neck and the underside of the
+        chin excluded) with ``seed``; 'animface': the 41 markers of the
+        bundled real take (:func:`animface_marker_map`); an array of scan
+        vertices (labelled ``M000``...); or a label -> vertex map.
     marker_offset_mm : float, default 1.5
         Marker centre height above the skin (half a 3 mm marker).
     noise_mm : float, default 0.2
-        Standard deviation of the per-axis Gaussian noise.
+        Standard deviation of the Gaussian noise on each coordinate (mm).
     gap_fraction : float, default 0.02
-        Fraction of marker samples occluded, in runs of 3-30 frames; frame 0
-        is always complete.
-    head_rotation_deg, head_translation_mm : float, default 4.0, 5.0
-        Amplitude of the smooth rigid head motion (about a pivot in the neck).
+        Fraction of marker samples (frame x marker) occluded, in runs of 3-30
+        frames, in [0, 0.5]. Frame 0 is always complete and no frame loses
+        every marker.
+    head_rotation_deg : float, default 4.0
+        Peak rotation of the head about a pivot in the neck (about 3 cm below
+        and 11 cm behind the chin), over the take or its first 10 s.
+    head_translation_mm : float, default 5.0
+        Peak head translation, likewise.
     headband_markers : int, default 4
-        Markers on a head band 15 mm off the forehead and temples.
+        Markers on a head band 15 mm off the upper forehead and temples
+        (0 to 16).
+    mocap_frame : (4, 4) float array, optional
+        The rigid transform ``mocap_from_scan``. Default: a seeded Z-up
+        frame, the head about 1.5 m up and facing a random direction.
     seed : int, default 0
+        Everything random follows from it: the curves and the layout use it
+        directly; the head band, head motion, mocap frame, noise and gaps use
+        independent streams spawned from it, so changing ``noise_mm`` or
+        ``gap_fraction`` changes nothing else.
     sample : IctSample, optional
-        Default: the bundled sample.
+        Default: :func:`load_ict_sample`.
 
     Returns
     -------
     SyntheticCase
+
+    Raises
+    ------
+    InputError
+        If an option has the wrong type, shape or range.
+
+    Notes
+    -----
+    Face marker i at frame t:
+    ``m_i(t) = mocap_from_scan @ head_pose[t] @ (truth[t, v_i] + offset * n_t(v_i)) + e``,
+    ``e ~ N(0, noise_mm^2 I)``, with ``n_t`` the area-weighted vertex normal
+    of ``truth[t]``. ``head_pose[t] = [R(t) | p - R(t) p + s(t)]`` for a
+    pivot ``p``, where the rotation vector of ``R`` and the shift ``s`` are
+    sums of slow sinusoids (0.1-0.6 Hz), zero at frame 0.
+
+    Examples
+    --------
+    >>> case = generate_performance(n_frames=30, n_markers=20, seed=1)
+    >>> case.markers.positions.shape, case.truth_vertices.shape
+    ((30, 24, 3), (30, 9409, 3))
     """
-    if n_frames < 2:
-        raise InputError(f"n_frames: expected at least 2, got {n_frames}")
-    if not 0 <= gap_fraction < 0.5:
-        raise InputError(f"gap_fraction: expected a fraction in [0, 0.5), got {gap_fraction}")
-    rng = np.random.default_rng(seed)
-    sample = sample or load_ict_sample()
+    sample = load_ict_sample() if sample is None else sample
+    if not isinstance(sample, IctSample):
+        raise InputError(f"sample: expected an IctSample, got {type(sample).__name__}")
+    seed = _count(seed, "seed", minimum=0)
+    rate = as_positive(rate, name="rate")
+    offset = as_positive(marker_offset_mm, name="marker_offset_mm", allow_zero=True)
+    noise_mm = as_positive(noise_mm, name="noise_mm", allow_zero=True)
+    gap_fraction = as_positive(gap_fraction, name="gap_fraction", allow_zero=True)
+    if gap_fraction > 0.5:
+        raise InputError(f"gap_fraction: expected a fraction in [0, 0.5], got {gap_fraction}")
+    rot_rad = np.deg2rad(as_positive(head_rotation_deg, name="head_rotation_deg", allow_zero=True))
+    shift_mm = as_positive(head_translation_mm, name="head_translation_mm", allow_zero=True)
+    n_band = _count(headband_markers, "headband_markers", minimum=0)
+    if n_band > MAX_HEADBAND_MARKERS:
+        raise InputError(f"headband_markers: expected at most {MAX_HEADBAND_MARKERS}, got {n_band}")
+    if n_markers is not None:
+        n_markers = _count(n_markers, "n_markers", minimum=1)
+    if mocap_frame is not None:
+        mocap_frame = _as_rigid(mocap_frame, "mocap_frame")
+    names = sample.expression_names
+
+    if curves is None:
+        T = DEFAULT_FRAMES if n_frames is None else _count(n_frames, "n_frames", minimum=1)
+        W = smooth_expression_curves(T, names, rate=rate, seed=seed)
+    else:
+        try:
+            W = np.array(curves, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise InputError("curves: expected a numeric (T, 53) array") from None
+        T = W.shape[0] if W.ndim == 2 else -1
+        if n_frames is not None:
+            T = _count(n_frames, "n_frames", minimum=1)
+        if W.shape != (T, len(names)) or T < 1:
+            raise InputError(f"curves: expected shape ({'T' if T < 1 else T}, {len(names)}), got {W.shape}")
+        if not np.all(np.isfinite(W)):
+            raise InputError("curves: contains NaN or infinite values")
+
+    streams = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(5)]
+    rng_band, rng_head, rng_mocap, rng_noise, rng_gaps = streams
+
     scan = sample.face(identity)
     V0, F = scan.vertices, scan.faces
-    names = sample.expression_names
-    if curves is None:
-        W = smooth_expression_curves(n_frames, names, rate=rate, seed=seed)
-    else:
-        W = np.asarray(curves, dtype=np.float64)
-        if W.shape != (n_frames, len(names)):
-            raise InputError(f"curves: expected shape ({n_frames}, {len(names)}), got {W.shape}")
-    truth = V0.astype(np.float32)[None] + np.tensordot(W.astype(np.float32), sample.expression_deltas, axes=1)
+    labels, mv = _layout(marker_layout, n_markers, sample, scan, seed)
+    band = _headband(sample, scan, n_band, rng_band)
+    if set(labels) & {f"HB{i}" for i in range(n_band)}:
+        raise InputError("marker_layout: labels HB0, HB1, ... are reserved for the head band")
 
-    if marker_vertices is None:
-        mv = choose_marker_vertices(V0, F, sample.expression_deltas, n_markers, seed=seed)
-    else:
-        mv = np.asarray(marker_vertices, dtype=np.int64)
-    normals = vertex_normals_at(truth, F, mv)  # (T, M, 3)
-    face_markers = truth[:, mv].astype(np.float64) + marker_offset_mm * normals
+    deltas32 = sample.expression_deltas.astype(np.float32)
+    truth = V0.astype(np.float32)[None] + np.tensordot(W.astype(np.float32), deltas32, axes=1)
 
-    # head band: a ring of markers 15 mm off the skin, from the temples over the top of the
-    # forehead, rigid with the skull; spread in height and depth so they fix all three rotations
-    band = np.zeros((0, 3))
-    if headband_markers > 0:
-        nose_tip_z = V0[:, 2].max()
-        upper = V0[V0[:, 1] > np.percentile(V0[:, 1], 70)]
-        angles = np.linspace(-1.1, 1.1, headband_markers)  # radians around the head, 0 = front
-        centre_z = nose_tip_z - 110.0
-        radius = np.ptp(upper[:, 0]) / 2 + 15.0
-        heights = upper[:, 1].max() - 15.0 - 35.0 * np.abs(angles) / 1.1
-        band = np.stack([radius * np.sin(angles), heights, centre_z + radius * np.cos(angles) * 0.9], axis=1)
-        band += rng.normal(scale=2.0, size=band.shape)
-    points = np.concatenate([face_markers, np.broadcast_to(band, (n_frames, band.shape[0], 3))], axis=1)
+    skin = truth[:, mv].astype(np.float64)
+    face_points = skin + offset * vertex_normals_at(truth, F, mv) if offset > 0 else skin
+    points = np.concatenate([face_points, np.broadcast_to(band, (T, band.shape[0], 3))], axis=1)
 
-    t = np.arange(n_frames) / rate
-    pivot = np.array([0.0, V0[:, 1].min() + 20.0, V0[:, 2].min() - 40.0])
-    rotvec = np.deg2rad(head_rotation_deg) * _smooth_signal(rng, t, 3) / np.sqrt(3)
-    shift = head_translation_mm * _smooth_signal(rng, t, 3) / np.sqrt(3)
-    R = Rotation.from_rotvec(rotvec).as_matrix()
-    head_pose = np.tile(np.eye(4), (n_frames, 1, 1))
+    pivot = V0[sample.landmarks[8]] + np.array([0.0, -30.0, -110.0])  # chin -> upper neck
+    pivot[0] = float(V0[:, 0].mean())
+    R = Rotation.from_rotvec(_scaled_motion(rng_head, T, rate, rot_rad)).as_matrix().reshape(T, 3, 3)
+    shift = _scaled_motion(rng_head, T, rate, shift_mm)
+    head_pose = np.tile(np.eye(4), (T, 1, 1))
     head_pose[:, :3, :3] = R
-    head_pose[:, :3, 3] = pivot - np.einsum("tij,j->ti", R, pivot) + shift
-    mocap_from_scan = _rigid(
-        Rotation.from_euler("xyz", [90.0 + rng.uniform(-10, 10), rng.uniform(-20, 20), rng.uniform(-180, 180)],
-                            degrees=True).as_matrix(),
-        np.array([rng.uniform(-500, 500), rng.uniform(-500, 500), 1500.0]),
-    )
-    world = mocap_from_scan[None] @ head_pose  # (T, 4, 4)
+    head_pose[:, :3, 3] = pivot - R @ pivot + shift
+    head_pose[0] = np.eye(4)
+
+    mocap_from_scan = _default_mocap_frame(rng_mocap) if mocap_frame is None else mocap_frame
+    world = mocap_from_scan[None] @ head_pose
     noiseless = np.einsum("tij,tkj->tki", world[:, :3, :3], points) + world[:, None, :3, 3]
-    observed = noiseless + rng.normal(scale=noise_mm, size=noiseless.shape) if noise_mm > 0 else noiseless.copy()
 
-    n_total = observed.shape[1]
+    observed = noiseless.copy()
+    if noise_mm > 0:
+        observed += rng_noise.normal(scale=noise_mm, size=observed.shape)
     if gap_fraction > 0:
-        target = gap_fraction * n_frames * n_total
-        missing = np.zeros((n_frames, n_total), dtype=bool)
-        while missing.sum() < target:
-            marker = rng.integers(n_total)
-            length = int(rng.integers(3, 31))
-            start = int(rng.integers(1, max(2, n_frames - 1)))
-            missing[start : start + length, marker] = True
-        missing[0] = False
-        observed[missing] = np.nan
+        observed[_gaps(rng_gaps, T, observed.shape[1], gap_fraction)] = np.nan
 
-    labels = tuple(f"M{i:03d}" for i in range(mv.size)) + tuple(f"HB{i}" for i in range(band.shape[0]))
-    markers = MarkerSequence(observed, labels, rate=rate, source_unit="mm", source_path="<generated>")
+    all_labels = labels + tuple(f"HB{i}" for i in range(n_band))
+    markers = MarkerSequence(observed, all_labels, rate=rate, source_unit="mm")
     return SyntheticCase(
         scan=scan,
         markers=markers,
-        correspondence={labels[i]: int(v) for i, v in enumerate(mv)},
+        correspondence={s: int(v) for s, v in zip(labels, mv)},
         truth_vertices=truth,
         head_pose=head_pose,
         mocap_from_scan=mocap_from_scan,
         weights=W,
         marker_vertices=mv,
         noiseless_markers=noiseless,
+        headband_points=band,
     )
