@@ -41,8 +41,9 @@ class SkinCase:
             S = self._embed(Ps) @ R.T + t
             self.scans.append(Mesh(S, Fs))
             phase = rng.uniform(0, 2 * np.pi, 4)
-            slide = slide_mm * np.stack([np.sin(self.P[:, 1] / 15 + phase[0]) * np.cos(self.P[:, 0] / 20 + phase[1]),
-                                         np.cos(self.P[:, 0] / 17 + phase[2]) * np.sin(self.P[:, 1] / 22 + phase[3])], 1)
+            x, y = self.P[:, 0], self.P[:, 1]
+            slide = slide_mm * np.stack([np.sin(y / 15 + phase[0]) * np.cos(x / 20 + phase[1]),
+                                         np.cos(x / 17 + phase[2]) * np.sin(y / 22 + phase[3])], 1)
             X = self._embed(self.P + slide) @ R.T + t
             registered.append(igl.point_mesh_squared_distance(X, S, Fs)[2])  # exactly on the scan
         self.registered = np.stack(registered)
@@ -85,8 +86,8 @@ def test_reduces_the_correspondence_error_against_the_truth(misaligned):
     before_all = case.correspondence_error(case.registered, case.interior)
     after_all = case.correspondence_error(result.vertices, case.interior)
     assert before_detail > 1.2
-    assert after_detail < 0.3 * before_detail  # measured: 1.35 -> 0.35 mm where there is detail
-    assert after_all < 0.5 * before_all  # and 1.35 -> 0.48 mm over the whole interior
+    assert after_detail < 0.3 * before_detail  # measured: 1.35 -> 0.32 mm where there is detail
+    assert after_all < 0.5 * before_all  # and 1.35 -> 0.45 mm over the whole interior
     assert np.all(result.misalignment_after < 0.8 * result.misalignment_before)
 
 
@@ -108,10 +109,16 @@ def test_neighbours_regions_and_flags(misaligned):
         assert i not in result.neighbours[i]  # a mesh is never its own neighbour
     counts = np.bincount(result.region_labels, minlength=8)
     assert counts.size == 8 and counts.min() > 0.8 * counts.mean()  # 2 x 4 grid at the quantiles
-    np.testing.assert_array_equal(result.flagged, result.misalignment_after > 0.05)
+    for i in range(K):  # the M others with the smallest mean vertex distance over each region
+        for r in range(8):
+            vr = result.region_labels == r
+            dist = [np.linalg.norm(case.registered[k, vr] - case.registered[i, vr], axis=1).mean() if k != i else np.inf
+                    for k in range(K)]
+            assert set(result.neighbours[i, r]) == set(np.argsort(dist)[:3])
+    np.testing.assert_array_equal(result.flagged, result.misalignment_after > 2 * np.median(result.misalignment_after))
 
 
-@pytest.mark.parametrize("options", [dict(flow="dis"), dict(average="images", confidence_floor=None)])
+@pytest.mark.parametrize("options", [dict(flow="farneback"), dict(average="images", confidence_floor=None)])
 def test_other_flows_and_averaging_also_align(options):
     case = SkinCase(K=3, seed=1)
     result = refine_registration(case.registered, case.F, case.scans, iterations=2, backend="scipy", **options)
@@ -121,9 +128,11 @@ def test_other_flows_and_averaging_also_align(options):
 
 def test_correct_registrations_stay_put():
     case = SkinCase(K=3, slide_mm=0.0)
-    result = refine_registration(case.registered, case.F, case.scans, iterations=2, backend="scipy")
+    result = refine_registration(case.registered, case.F, case.scans, iterations=2, backend="scipy",
+                                 error_threshold=1.0)
     assert np.abs(result.vertices - case.registered).max() < 0.05
     assert case.correspondence_error(result.vertices, case.interior) < 0.02
+    assert not result.flagged.any()
 
 
 def test_user_correspondence_pins_a_vertex():
@@ -168,6 +177,7 @@ def tiny_case():
         dict(region_labels=np.zeros(5, dtype=np.int64)),
         dict(flow="lucas-kanade"),
         dict(average="median"),
+        dict(error_threshold=-0.1),
         dict(neighbours=0),
         dict(alpha=-1.0),
         dict(confidence_floor=2.0),

@@ -59,7 +59,8 @@ class TriangleRaster:
         """
         X = np.asarray(values, dtype=np.float64)
         if X.shape[:1] != (self.pixels.shape[0],) or X.ndim not in (1, 2):
-            raise InputError(f"values: expected ({self.pixels.shape[0]},) or ({self.pixels.shape[0]}, c), got {X.shape}")
+            n = self.pixels.shape[0]
+            raise InputError(f"values: expected ({n},) or ({n}, c), got {X.shape}")
         covered = self.face >= 0
         corners = self.F[np.where(covered, self.face, 0)]           # (h, w, 3)
         if X.ndim == 1:
@@ -377,7 +378,8 @@ def cylindrical_map(
     s = np.cross(a, f)
     if isinstance(size_px, bool) or not isinstance(size_px, (int, np.integer)) or size_px < 8:
         raise InputError(f"size_px: expected an integer >= 8, got {size_px!r}")
-    if isinstance(margin_px, bool) or not isinstance(margin_px, (int, np.integer)) or not 0 <= 2 * margin_px < size_px - 2:
+    if (isinstance(margin_px, bool) or not isinstance(margin_px, (int, np.integer))
+            or not 0 <= 2 * margin_px < size_px - 2):
         raise InputError(f"margin_px: expected an integer in [0, size_px / 2 - 1), got {margin_px!r}")
     mean = Vv.mean(axis=0)
     xs, xf = (Vv - mean) @ s, (Vv - mean) @ f
