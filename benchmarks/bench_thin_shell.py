@@ -269,6 +269,7 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
 
     compute: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
     blocked: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
+    gemm_only: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
     out = np.empty((batches[0], n, 3), np.float32)
     ref = solver.deform_into(disp32[: batches[0]], rest32, np.empty_like(out))
     blocked_err_mm = float(np.abs(blocked_deform_into(solver.basis, disp32[: batches[0]], rest32, out) - ref).max())
@@ -292,7 +293,15 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
                         stop = min(start + b, T)
                         blocked_deform_into(solver.basis, disp32[start:stop], rest32, out[: stop - start])
                 blocked[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
-            del out
+            # the floor: the product alone into a preallocated (3b, n) array, no layout change, no rest
+            scratch = np.empty((3 * b, n), np.float32)
+            with Window() as w:
+                for start in range(0, T, b):
+                    stop = min(start + b, T)
+                    X = np.ascontiguousarray(disp32[start:stop].transpose(2, 0, 1).reshape(3 * (stop - start), -1))
+                    np.matmul(X, solver.basis, out=scratch[: 3 * (stop - start)])
+            gemm_only[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
+            del out, scratch
         frames = range(rep * per_rep_direct, (rep + 1) * per_rep_direct)
         with Window() as w:
             for t in frames:
@@ -325,6 +334,8 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
         "blocked": {str(b): v for b, v in blocked.items()},
         "blocked_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in blocked.items() if v},
         "blocked_max_diff_mm": blocked_err_mm,
+        "gemm_only": {str(b): v for b, v in gemm_only.items()},
+        "gemm_only_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in gemm_only.items()},
         "direct": direct, "direct_s_per_frame_median": _median([d["s_per_frame"] for d in direct]),
         "direct_frames_total": per_rep_direct * args.repeats,
         "speedup": ratios, "speedup_median": _median(ratios),
@@ -502,21 +513,24 @@ def markdown(payload: dict[str, Any]) -> str:
     stream = {(r["case"], r["frames"], r["sink"]): r for r in rs if r["mode"] == "stream"}
     setups = {r["backend"]: r for r in rs if r["mode"] == "setup"}
     L.append("| mesh | vertices | set-up s | deform_into fps b=16 / 32 / 64 | blocked (proposal) b=16 / 32 / 64 "
-             "| solve_direct s/frame | speed-up (b=32) | end-to-end fps | incl. sync | other load, cores |")
-    L.append("|---|---|---|---|---|---|---|---|---|---|")
+             "| GEMM alone b=16 / 32 / 64 | solve_direct s/frame | speed-up (b=32) | end-to-end fps | incl. sync "
+             "| other load, cores |")
+    L.append("|---|---|---|---|---|---|---|---|---|---|---|")
     for case in _meshes.CASES:
         s = speed.get(case)
         if s is None:
             continue
         setup_all = [s["setup_s"]] + [r["setup_s"] for k, r in stream.items() if k[0] == case]
-        cf, bf = s["compute_fps_median"], s.get("blocked_fps_median", {})
+        cf, bf, gf = s["compute_fps_median"], s.get("blocked_fps_median", {}), s.get("gemm_only_fps_median", {})
         others = [x["other_cores"] for v in s["compute"].values() for x in v]
         others += [x["other_cores"] for v in s.get("blocked", {}).values() for x in v]
+        others += [x["other_cores"] for v in s.get("gemm_only", {}).values() for x in v]
         others += [x["other_cores"] for x in s["direct"] + s["e2e"]]
         L.append(
             f"| {case} | {s['n_vertices']:,} | {_median(setup_all):.1f} (n={len(setup_all)}) | "
             + " / ".join(f"{cf[k]:.0f}" for k in cf) + " | "
             + (" / ".join(f"{bf[k]:.0f}" for k in bf) if bf else "-") + " | "
+            + (" / ".join(f"{gf[k]:.0f}" for k in gf) if gf else "-") + " | "
             f"{s['direct_s_per_frame_median']:.3f} | {s['speedup_median']:.0f}x | "
             f"{s.get('e2e_fps_median', float('nan')):.0f} | {s.get('e2e_fps_incl_sync_median', float('nan')):.0f} | "
             f"{min(others):.2f}-{max(others):.2f} |"
