@@ -49,6 +49,9 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--unmarked-pieces", choices=("carry", "rigid"), default="carry",
                    help="pieces with no marker (eyes, teeth): follow the nearest marked surface, or stay [carry]")
     p.add_argument("--batch-frames", type=int, default=32, help="frames per dense product [32]")
+    p.add_argument("--precision", choices=("float32", "int16"), default="float32",
+                   help="arithmetic of the per-frame product: exact float32, or int16 fixed point "
+                        "(about 1.5x faster with MKL on AVX-512 VNNI, error ~1e-4 of the motion) [float32]")
     p.set_defaults(func=_cmd_animate)
 
 
@@ -69,7 +72,7 @@ def _cmd_animate(args: argparse.Namespace) -> int:
         scan, take, corr, args.out,
         rest_frame=args.rest_frame, ks=args.ks, kb=args.kb, stabilize=stabilize,
         smooth=not args.no_smooth, exports=exports, unmarked_pieces=args.unmarked_pieces,
-        batch_frames=args.batch_frames, progress=not args.quiet,
+        batch_frames=args.batch_frames, precision=args.precision, progress=not args.quiet,
         extra_metadata={"map": str(args.map)},
     )
     if not args.quiet:

@@ -21,6 +21,7 @@ from ..markers.condition_take import condition_take
 from ..markers.rigid_fit import rigid_fit
 from ..mesh.check_mesh import check_mesh
 from ..structures import MarkerSequence, Mesh
+from .basis_product import Precision
 from .factor_spd import Backend
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces
 from .triharmonic_warp import TriharmonicWarp
@@ -194,6 +195,7 @@ def animate_scan(
     unmarked_pieces: UnmarkedPieces = "carry",
     batch_frames: int = 32,
     backend: Backend = "auto",
+    precision: Precision = "float32",
     progress: bool = True,
     extra_metadata: dict[str, Any] | None = None,
 ) -> AnimationResult:
@@ -232,6 +234,9 @@ def animate_scan(
         Frames per dense product.
     backend : {'auto', 'pardiso', 'scipy'}
         Sparse factorisation backend.
+    precision : {'float32', 'int16'}, default 'float32'
+        Arithmetic of the per-frame product, see
+        :class:`~facecap.deform.basis_product.BasisProduct`.
     progress : bool, default True
         Show a progress bar.
     extra_metadata : dict, optional
@@ -272,7 +277,7 @@ def animate_scan(
         stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
         solver = ThinShellSolver(
             scan.vertices, scan.faces, prepared.constrained_vertices,
-            ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend,
+            ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
         )
         timings["shell_setup_s"] = time.perf_counter() - t
         for w in records:
@@ -304,6 +309,8 @@ def animate_scan(
         "parameters": {
             "ks": ks, "kb_mm2": kb, "smooth": smooth, "unmarked_pieces": unmarked_pieces,
             "stable_markers": list(prepared.stable_labels), "backend": solver.backend,
+            "precision": solver.product.precision,
+            "product_error_bound_mm": solver.product.error_bound_mm(float(np.abs(disp32).max(initial=0.0))),
         },
         "markers": list(prepared.labels),
         "first_frame": markers.first_frame,

@@ -2,16 +2,13 @@
 
 from __future__ import annotations
 
-import glob
-import os
-import site
-import sys
 import warnings
 from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
 
+from .._mkl import locate_mkl_runtime
 from ..errors import FacecapWarning, InputError, SolverError
 from ..typing import FloatArray
 
@@ -24,7 +21,7 @@ def available_backends() -> list[str]:
     """Names of the sparse factorisation backends importable here, fastest first."""
     names = []
     try:
-        _locate_mkl()
+        locate_mkl_runtime()
         import pypardiso  # noqa: F401
 
         names.append("pardiso")
@@ -34,26 +31,9 @@ def available_backends() -> list[str]:
     return names
 
 
-def _locate_mkl() -> None:
-    """Point pypardiso at ``libmkl_rt`` before it searches for it.
-
-    pypardiso looks for the library by a recursive glob of the Python prefix
-    when it is imported and on every solver construction (1-3 s each,
-    measured here) unless ``PYPARDISO_MKL_RT`` names it. The ``mkl`` wheel
-    installs it in ``<prefix>/lib``, so look there first.
-    """
-    if "PYPARDISO_MKL_RT" in os.environ:
-        return
-    for folder in (sys.prefix, site.USER_BASE or ""):
-        found = sorted(glob.glob(os.path.join(folder, "lib", "libmkl_rt.*")), key=len)
-        if found:
-            os.environ["PYPARDISO_MKL_RT"] = found[0]
-            return
-
-
 def _new_pardiso_solver() -> Any:
     """A PARDISO solver in real symmetric positive-definite mode."""
-    _locate_mkl()
+    locate_mkl_runtime()
     import pypardiso
 
     return pypardiso.PyPardisoSolver(mtype=2)

@@ -17,6 +17,7 @@ from ..mesh.laplacian import laplace_operators
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..typing import FloatArray, IntArray
 from ..validate import as_faces, as_positive, as_vertices
+from .basis_product import BasisProduct, Precision
 from .factor_spd import Backend, SpdFactor
 
 __all__ = ["ThinShellSolver", "PieceReport", "thin_shell_deform", "DEFAULT_KS", "DEFAULT_KB_MM2"]
@@ -86,7 +87,7 @@ class ThinShellSolver:
     right-hand side changes per frame only through the K marker displacements,
     so the set-up factors the system once and solves it for K unit right-hand
     sides, giving a basis ``B`` (K x n): every frame is then one dense product
-    ``d = B^T d_markers``, batched over frames.
+    ``d = B^T d_markers``, batched over frames (:class:`BasisProduct`).
 
     Parameters
     ----------
@@ -116,11 +117,18 @@ class ThinShellSolver:
         per-frame sparse solve (for checks and benchmarks); costs its memory.
     weld_tolerance_mm : float, default 1e-6
         Vertices closer than this are one vertex for the solve (UV seams).
+    precision : {'float32', 'int16'}, default 'float32'
+        Arithmetic of the per-frame product, see :class:`BasisProduct`.
+        ``'int16'`` is about 1.5x faster on AVX-512 VNNI machines with MKL and
+        differs by about 1e-4 of the displacement.
 
     Attributes
     ----------
     basis : (K, n) float32 array
-        Displacement of every vertex per unit displacement of each marker.
+        Displacement of every vertex per unit displacement of each marker (a
+        copy made on access; the hot path keeps its own blocked layout).
+    product : BasisProduct
+        The per-frame product.
     pieces : PieceReport
 
     Raises
@@ -148,6 +156,7 @@ class ThinShellSolver:
         backend: Backend = "auto",
         keep_factor: bool = False,
         weld_tolerance_mm: float = 1e-6,
+        precision: Precision = "float32",
     ) -> None:
         V = as_vertices(V)
         F = as_faces(F, V.shape[0])
@@ -224,11 +233,12 @@ class ThinShellSolver:
         A_fc = A[free_idx][:, cl]
         self._factor: SpdFactor | None = SpdFactor(A_ff.tocsr(), backend=backend)
         self.backend = self._factor.backend
-        basis_free = -self._factor.solve(A_fc.toarray())  # (n_free, K)
-
-        Bw = np.zeros((c.size, nw), dtype=np.float32)  # markers-by-welded-vertices
-        Bw[:, solve_vertices[free_idx]] = basis_free.T
-        Bw[np.arange(c.size), cw] = 1.0
+        Ww = np.zeros((nw, c.size), dtype=np.float32)  # welded-vertices-by-markers weights
+        Ww[solve_vertices[free_idx]] = -self._factor.solve(A_fc.toarray())
+        Ww[cw, np.arange(c.size)] = 1.0
+        if not keep_factor:  # free the factor before the weights are copied into the product
+            self._factor.free()
+            self._factor = None
 
         unmarked_vertices = np.flatnonzero(~solve_mask)
         if unmarked_vertices.size and unmarked_pieces == "carry":
@@ -239,20 +249,20 @@ class ThinShellSolver:
                 if piece < 0:  # unreferenced vertices: each follows its own neighbourhood
                     _, nb = tree.query(Vw[members], k=kn)
                     nb = np.atleast_2d(nb)
-                    Bw[:, members] = Bw[:, solve_vertices[nb]].mean(axis=2)
+                    Ww[members] = Ww[solve_vertices[nb]].mean(axis=1)
                     continue
                 dist, nearest = tree.query(Vw[members], k=1)
                 attach = np.argsort(dist)[:kn]  # the piece's vertices closest to the skin
                 anchors = np.unique(solve_vertices[nearest[attach]])
-                Bw[:, members] = Bw[:, anchors].mean(axis=1, keepdims=True)
+                Ww[members] = Ww[anchors].mean(axis=0)
 
-        self.basis: np.ndarray = np.ascontiguousarray(Bw[:, welded_index])
         self.constrained_vertices = c
         if keep_factor:
-            self._direct = (A_fc.tocsr(), solve_vertices[free_idx], welded_index, solve_mask)
-        else:
-            self._factor.free()
-            self._factor = None
+            unmarked = ~solve_mask[welded_index]
+            self._direct = (A_fc.tocsr(), solve_vertices[free_idx], welded_index, solve_mask,
+                            Ww[welded_index[unmarked]].astype(np.float64))
+        self.product = BasisProduct(Ww[welded_index], precision=precision)
+        del Ww
 
         if self.pieces.unmarked_pieces:
             warnings.warn(
@@ -266,7 +276,12 @@ class ThinShellSolver:
     @property
     def n_markers(self) -> int:
         """Number of constrained vertices K."""
-        return int(self.basis.shape[0])
+        return self.product.n_markers
+
+    @property
+    def basis(self) -> np.ndarray:
+        """(K, n) float32: every vertex's displacement per unit displacement of each marker."""
+        return self.product.dense_weights().T
 
     def displacements(self, marker_displacements: FloatArray) -> FloatArray:
         """Vertex displacements for one frame or a batch of frames.
@@ -302,17 +317,10 @@ class ThinShellSolver:
 
         Notes
         -----
-        One GEMM ``(3b, K) @ (K, n)`` for the whole batch, then one strided add
-        per axis into ``out``: the (b, 3, n) -> (b, n, 3) transpose done by
-        ``np.add(..., out=out[:, :, a])`` keeps long inner loops, which is ~5x
-        faster than transposing the product as a whole.
+        See :class:`BasisProduct` for how the batch is computed: in vertex
+        blocks that stay in cache, one thread per core.
         """
-        b = marker_displacements.shape[0]
-        X = np.ascontiguousarray(marker_displacements.transpose(2, 0, 1).reshape(3 * b, -1), dtype=np.float32)
-        R = X @ self.basis
-        for axis in range(3):
-            np.add(R[axis * b : (axis + 1) * b], rest[:, axis], out=out[:, :, axis])
-        return out
+        return self.product.apply_into(marker_displacements, rest, out)
 
     def solve_direct(self, marker_displacements: FloatArray) -> FloatArray:
         """One frame by a sparse back-substitution with the kept factor (reference path).
@@ -328,7 +336,7 @@ class ThinShellSolver:
         """
         if self._factor is None:
             raise InputError("solve_direct needs the solver built with keep_factor=True")
-        A_fc, free_welded, welded_index, solve_mask = self._direct
+        A_fc, free_welded, welded_index, solve_mask, unmarked_weights = self._direct
         d = np.asarray(marker_displacements, dtype=np.float64)
         x = self._factor.solve(-(A_fc @ d))
         nw = solve_mask.size
@@ -338,7 +346,7 @@ class ThinShellSolver:
         full = Dw[welded_index]
         unmarked = ~solve_mask[welded_index]
         if unmarked.any():  # pieces without markers follow the rule built into the basis
-            full[unmarked] = self.basis[:, unmarked].T.astype(np.float64) @ d
+            full[unmarked] = unmarked_weights @ d
         return full
 
 
