@@ -650,7 +650,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--ablation-variants", nargs="*", default=["default", "noise0.5"],
                     help="variants whose cases also get the error budget (truth-replaced conditioning)")
     ap.add_argument("--quick", action="store_true", help="1 seed, 120 frames, every variant: a smoke run")
-    ap.add_argument("--save", type=Path, help="write all figures as JSON here")
+    ap.add_argument("--save", type=Path, help="write all figures as JSON here (also after every case)")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the cases (and real take) already in --save when they were measured on the same "
+                         "code with the same --frames, and run only the rest")
     ap.add_argument("--markdown", type=Path, help="write the results section here")
     args = ap.parse_args(argv)
     if args.quick:
@@ -662,10 +665,31 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, Any] = {"machine": machine(), "code": code_version(),
                                "command": " ".join(["python"] + sys.argv),
                                "frames": args.frames, "rate_hz": RATE_HZ, "cases": []}
+    done: dict[tuple[str, int], dict] = {}
+    if args.resume and args.save and args.save.is_file():
+        old = json.loads(args.save.read_text())
+        if old.get("code") == results["code"] and old.get("frames") == args.frames:
+            done = {(c["variant"], c["seed"]): c for c in old["cases"]}
+            if "real_take" in old:
+                results["real_take"] = old["real_take"]
+            results["resumed_seconds"] = (old["seconds"] if "seconds" in old else
+                                          old.get("partial_seconds", 0.0) + old.get("resumed_seconds", 0.0))
+            print(f"resuming: {len(done)} case(s) kept from {args.save}", file=sys.stderr)
+        else:
+            print(f"not resuming: {args.save} was measured on other code or frames", file=sys.stderr)
+
+    def checkpoint() -> None:
+        if args.save:
+            results["partial_seconds"] = time.perf_counter() - t0
+            args.save.write_text(json.dumps(results, indent=1))
+
     try:
         for variant in args.variants:
             n_seeds = args.seeds if variant == "default" else args.variant_seeds
             for seed in range(n_seeds):
+                if (variant, seed) in done:
+                    results["cases"].append(done[(variant, seed)])
+                    continue
                 c = run_case(variant, seed, args.frames, sample, work,
                              sweep=variant == "default" and seed < args.sweep_seeds,
                              loo=variant == "default" and seed == 0 and not args.no_loo_synthetic,
@@ -675,12 +699,15 @@ def main(argv: list[str] | None = None) -> int:
                       f"warp {c['stab']['warp']['mean_mm']:.3f} mm; unstabilised shell "
                       f"{c['nostab']['shell']['mean_mm']:.3f}, warp {c['nostab']['warp']['mean_mm']:.3f} "
                       f"({c['seconds']:.0f} s)", file=sys.stderr, flush=True)
-        if not args.no_real:
+                checkpoint()
+        if not args.no_real and "real_take" not in results:
             results["real_take"] = run_real_take(sample, work)
+            checkpoint()
             print(f"real take done ({results['real_take']['seconds']:.0f} s)", file=sys.stderr, flush=True)
     finally:
         shutil.rmtree(work, ignore_errors=True)
-    results["seconds"] = time.perf_counter() - t0
+    results.pop("partial_seconds", None)
+    results["seconds"] = time.perf_counter() - t0 + results.pop("resumed_seconds", 0.0)
     results["verdict"] = verdict(results)
 
     md = tables(results)

@@ -15,7 +15,9 @@ Modes
 speed
     ``ThinShellSolver(..., keep_factor=True)`` once, then, ``--repeats`` times:
     batched ``deform_into`` over all frames (compute only, preallocated output,
-    batch 16/32/64); ``solve_direct`` (sparse back-substitution with the kept
+    batch 16/32/64), the same with the int16 product (``precision='int16'``),
+    and the bare GEMM into a preallocated (3b, n) array (no layout change: a
+    reference, not the product users get); ``solve_direct`` (sparse back-substitution with the kept
     factor) on ``--direct-frames`` frames, the ratio taken against the batch-32
     run of the same repeat; and the streamed loop of ``animate_scan`` (same
     code: two buffers, one writer thread, ``PerformanceWriter``) writing a real
@@ -221,36 +223,11 @@ def _null_sink() -> None:
     write_performance._NpyStream = _NullNpyStream
 
 
-# --------------------------------------------------------------------------- a proposed hot path
-
-
-def blocked_deform_into(basis: np.ndarray, D: np.ndarray, rest: np.ndarray, out: np.ndarray,
-                        *, block_bytes: int = 6 << 20) -> np.ndarray:
-    """``ThinShellSolver.deform_into`` done in vertex blocks small enough to stay in cache (a proposal).
-
-    Same GEMM and the same strided adds, but per block of ``c`` vertices with
-    ``3 b c`` float32 scratch of about ``block_bytes``: the product never goes
-    to main memory and the three strided passes over ``out`` hit the cache,
-    instead of a (3b, n) temporary (allocated, page-faulted, written and read
-    back) and three full passes over ``out``.
-    """
-    b, n = D.shape[0], basis.shape[1]
-    c = max(1024, block_bytes // (12 * b))
-    X = np.ascontiguousarray(D.transpose(2, 0, 1).reshape(3 * b, -1), dtype=np.float32)
-    scratch = np.empty((3 * b, min(c, n)), np.float32)
-    for s in range(0, n, c):
-        e = min(s + c, n)
-        R = scratch[:, : e - s]
-        np.matmul(X, basis[:, s:e], out=R)
-        for a in range(3):
-            np.add(R[a * b : (a + 1) * b], rest[s:e, a], out=out[:, s:e, a])
-    return out
-
-
 # --------------------------------------------------------------------------- modes
 
 
 def run_speed(args: argparse.Namespace) -> dict[str, Any]:
+    from facecap.deform.basis_product import BasisProduct
     from facecap.io.write_performance import PerformanceWriter
 
     mesh, markers, motion = _inputs(args.case, args.frames)
@@ -268,11 +245,14 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
     max_err_mm = float(np.abs(ref - fast).max())
 
     compute: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
-    blocked: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
+    int16: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
     gemm_only: dict[int, list[dict[str, float]]] = {b: [] for b in batches}
     out = np.empty((batches[0], n, 3), np.float32)
     ref = solver.deform_into(disp32[: batches[0]], rest32, np.empty_like(out))
-    blocked_err_mm = float(np.abs(blocked_deform_into(solver.basis, disp32[: batches[0]], rest32, out) - ref).max())
+    basis = solver.basis  # (K, n) float32, for the bare GEMM
+    fixed = None if args.no_int16 else BasisProduct(basis.T, precision="int16")
+    int16_err_mm = (float("nan") if fixed is None
+                    else float(np.abs(fixed.apply_into(disp32[: batches[0]], rest32, out) - ref).max()))
     del out, ref
     direct: list[dict[str, float]] = []
     ratios: list[float] = []
@@ -287,19 +267,19 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
                     stop = min(start + b, T)
                     solver.deform_into(disp32[start:stop], rest32, out[: stop - start])
             compute[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
-            if not args.no_blocked:
+            if fixed is not None:
                 with Window() as w:
                     for start in range(0, T, b):
                         stop = min(start + b, T)
-                        blocked_deform_into(solver.basis, disp32[start:stop], rest32, out[: stop - start])
-                blocked[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
+                        fixed.apply_into(disp32[start:stop], rest32, out[: stop - start])
+                int16[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
             # the floor: the product alone into a preallocated (3b, n) array, no layout change, no rest
             scratch = np.empty((3 * b, n), np.float32)
             with Window() as w:
                 for start in range(0, T, b):
                     stop = min(start + b, T)
                     X = np.ascontiguousarray(disp32[start:stop].transpose(2, 0, 1).reshape(3 * (stop - start), -1))
-                    np.matmul(X, solver.basis, out=scratch[: 3 * (stop - start)])
+                    np.matmul(X, basis, out=scratch[: 3 * (stop - start)])
             gemm_only[b].append({"fps": T / w.seconds, "other_cores": w.other_cores, "my_cores": w.my_cores})
             del out, scratch
         frames = range(rep * per_rep_direct, (rep + 1) * per_rep_direct)
@@ -331,9 +311,9 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
         "max_err_dense_vs_sparse_mm": max_err_mm,
         "compute": {str(b): v for b, v in compute.items()},
         "compute_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in compute.items()},
-        "blocked": {str(b): v for b, v in blocked.items()},
-        "blocked_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in blocked.items() if v},
-        "blocked_max_diff_mm": blocked_err_mm,
+        "int16": {str(b): v for b, v in int16.items()},
+        "int16_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in int16.items() if v},
+        "int16_max_diff_mm": int16_err_mm,
         "gemm_only": {str(b): v for b, v in gemm_only.items()},
         "gemm_only_fps_median": {str(b): _median([r["fps"] for r in v]) for b, v in gemm_only.items()},
         "direct": direct, "direct_s_per_frame_median": _median([d["s_per_frame"] for d in direct]),
@@ -500,8 +480,18 @@ def _short(r: dict[str, Any]) -> str:
     return json.dumps({k: r[k] for k in keys if k in r})
 
 
-def markdown(payload: dict[str, Any]) -> str:
-    """The tables of RESULTS_thin_shell.md from a saved payload."""
+def _pool(runs: list[dict[str, Any]], key: str, b: str, value: str, max_other: float) -> tuple[float, int]:
+    xs = [x[value] for r in runs for x in r.get(key, {}).get(b, []) if x["other_cores"] <= max_other]
+    return (_median(xs), len(xs)) if xs else (float("nan"), 0)
+
+
+def markdown(payload: dict[str, Any], *, max_other: float = float("inf")) -> str:
+    """The tables of RESULTS_thin_shell.md from saved results.
+
+    Repeats of the same speed configuration (from one or several runs) are
+    pooled; only those during which other processes used at most
+    ``max_other`` cores count, and each cell says how many did (``n``).
+    """
     m, disk, rs = payload["machine"], payload["disk"], [r for r in payload["results"] if "error" not in r]
     L = []
     L.append(f"Machine: {m['cpu']} ({m['simd']}), {m['cores']} cores, {m['ram_gb']} GB RAM; Python {m['python']}, "
@@ -509,49 +499,73 @@ def markdown(payload: dict[str, Any]) -> str:
              f"(MKL {m['mkl']}), libigl {m['libigl']}. Disk (dd, 4 GiB of 8 MiB blocks, median of 3): "
              f"{disk['dd_fdatasync_MBps']:.0f} MB/s with fdatasync, {disk['dd_cached_MBps']:.0f} MB/s into the page cache.")
     L.append("")
-    speed = {r["case"]: r for r in rs if r["mode"] == "speed"}
-    stream = {(r["case"], r["frames"], r["sink"]): r for r in rs if r["mode"] == "stream"}
-    setups = {r["backend"]: r for r in rs if r["mode"] == "setup"}
-    L.append("| mesh | vertices | set-up s | deform_into fps b=16 / 32 / 64 | blocked (proposal) b=16 / 32 / 64 "
-             "| GEMM alone b=16 / 32 / 64 | solve_direct s/frame | speed-up (b=32) | end-to-end fps | incl. sync "
-             "| other load, cores |")
-    L.append("|---|---|---|---|---|---|---|---|---|---|---|")
+    if max_other != float("inf"):
+        L.append(f"Speed figures: medians over the repeats during which other processes used <= {max_other} cores "
+                 "(n = how many of them).")
+        L.append("")
+    L.append("| mesh | vertices | set-up s | fps, deform_into b=16 / 32 / 64 | fps, int16 product | "
+             "fps, GEMM alone | solve_direct s/frame | speed-up (b=32) | end-to-end fps | incl. final sync |")
+    L.append("|---|---|---|---|---|---|---|---|---|---|")
     for case in _meshes.CASES:
-        s = speed.get(case)
-        if s is None:
+        runs = [r for r in rs if r["mode"] == "speed" and r["case"] == case]
+        if not runs:
             continue
-        setup_all = [s["setup_s"]] + [r["setup_s"] for k, r in stream.items() if k[0] == case]
-        cf, bf, gf = s["compute_fps_median"], s.get("blocked_fps_median", {}), s.get("gemm_only_fps_median", {})
-        others = [x["other_cores"] for v in s["compute"].values() for x in v]
-        others += [x["other_cores"] for v in s.get("blocked", {}).values() for x in v]
-        others += [x["other_cores"] for v in s.get("gemm_only", {}).values() for x in v]
-        others += [x["other_cores"] for x in s["direct"] + s["e2e"]]
-        L.append(
-            f"| {case} | {s['n_vertices']:,} | {_median(setup_all):.1f} (n={len(setup_all)}) | "
-            + " / ".join(f"{cf[k]:.0f}" for k in cf) + " | "
-            + (" / ".join(f"{bf[k]:.0f}" for k in bf) if bf else "-") + " | "
-            + (" / ".join(f"{gf[k]:.0f}" for k in gf) if gf else "-") + " | "
-            f"{s['direct_s_per_frame_median']:.3f} | {s['speedup_median']:.0f}x | "
-            f"{s.get('e2e_fps_median', float('nan')):.0f} | {s.get('e2e_fps_incl_sync_median', float('nan')):.0f} | "
-            f"{min(others):.2f}-{max(others):.2f} |"
-        )
+        setups = [r["setup_s"] for r in runs if r["setup_other_cores"] <= max_other]
+        setups += [r["setup_s"] for r in rs if r["mode"] == "stream" and r["case"] == case
+                   and r["other_cores"] <= max_other]
+        # direct and e2e are lists of repeats; wrap them so _pool can read them
+        wrapped = [{**r, "d": {"_": r["direct"]}, "e": {"_": r["e2e"]},
+                    "ratio": {"_": [{"x": x, "other_cores": max(d["other_cores"], c["other_cores"])}
+                                    for x, d, c in zip(r["speedup"], r["direct"], r["compute"]["32"])]}}
+                   for r in runs]
+
+        def cells(key: str) -> str:
+            vals = [_pool(wrapped, key, b, "fps", max_other) for b in ("16", "32", "64")]
+            return " / ".join(f"{v:.0f}" for v, _ in vals) + f" (n={min(k for _, k in vals)})"
+
+        d, nd = _pool(wrapped, "d", "_", "s_per_frame", max_other)
+        q, nq = _pool(wrapped, "ratio", "_", "x", max_other)
+        e, ne = _pool(wrapped, "e", "_", "fps", max_other)
+        es, _ = _pool(wrapped, "e", "_", "fps_incl_sync", max_other)
+        su = f"{_median(setups):.1f} (n={len(setups)})" if setups else "-"
+        L.append(f"| {case} | {runs[0]['n_vertices']:,} | {su} | {cells('compute')} | {cells('int16')} | "
+                 f"{cells('gemm_only')} | {d:.2f} (n={nd}) | {q:.0f}x (n={nq}) | {e:.0f} (n={ne}) | {es:.0f} |")
     L.append("")
     L.append("| take | sink | streamed GB | animate_scan fps | set-up s | peak RSS GB (ru_maxrss) "
              "| of which set-up | after set-up | RSS while streaming, first / last quarter GB | other load, cores |")
     L.append("|---|---|---|---|---|---|---|---|---|---|")
-    for (case, frames, sink), r in sorted(stream.items(), key=lambda kv: (kv[0][1], kv[0][0])):
-        L.append(f"| {case} x {frames:,} frames | {'/dev/null' if sink == 'null' else 'vertices.npy'} | "
+    streams = sorted((r for r in rs if r["mode"] == "stream"), key=lambda r: (r["frames"], r["n_vertices"]))
+    for r in streams:
+        L.append(f"| {r['case']} x {r['frames']:,} frames | {'/dev/null' if r['sink'] == 'null' else 'vertices.npy'} | "
                  f"{r['streamed_gb']:.1f} | {r['e2e_fps']:.0f} | {r['setup_s']:.1f} | {r['peak_rss_gb']:.2f} | "
                  f"{r['peak_rss_setup_gb']:.2f} | {r['peak_rss_after_setup_gb']:.2f} | "
                  f"{r['rss_stream_first_quarter_max_gb']:.2f} / {r['rss_stream_last_quarter_max_gb']:.2f} | "
                  f"{r['other_cores']:.2f} |")
-    if setups:
+    setups_rows = [r for r in rs if r["mode"] == "setup"]
+    if setups_rows:
         L.append("")
-        L.append("| 100k set-up backend | set-up s | peak RSS GB |")
-        L.append("|---|---|---|")
-        for name, r in setups.items():
-            L.append(f"| {name} | {r['setup_s']:.1f} | {r['peak_rss_gb']:.2f} |")
+        L.append("| set-up only, backend | mesh | set-up s | peak RSS GB | other load, cores |")
+        L.append("|---|---|---|---|---|")
+        for r in setups_rows:
+            L.append(f"| {r['backend']} | {r['case']} | {r['setup_s']:.1f} | {r['peak_rss_gb']:.2f} | {r['other_cores']:.2f} |")
     return "\n".join(L)
+
+
+def load_results(paths: list[str]) -> dict[str, Any]:
+    """Merge saved ``--all`` payloads (JSON) and files of ``RESULT`` lines into one payload."""
+    payload: dict[str, Any] = {"machine": None, "disk": None, "results": []}
+    for p in paths:
+        text = Path(p).read_text()
+        if text.lstrip().startswith("{"):
+            d = json.loads(text)
+            payload["machine"] = payload["machine"] or d["machine"]
+            payload["disk"] = payload["disk"] or d["disk"]
+            payload["results"] += d["results"]
+        else:
+            payload["results"] += [json.loads(ln[7:]) for ln in text.splitlines() if ln.startswith("RESULT ")]
+    if payload["machine"] is None:
+        payload["machine"] = machine_facts()
+    return payload
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -567,14 +581,17 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--sink", choices=("file", "null"), default="file")
     p.add_argument("--backend", choices=("auto", "pardiso", "scipy"), default="auto")
     p.add_argument("--no-write", action="store_true", help="speed mode: skip the end-to-end writes")
-    p.add_argument("--no-blocked", action="store_true", help="speed mode: skip the proposed blocked hot path")
+    p.add_argument("--no-int16", action="store_true", help="speed mode: skip the int16 product")
     p.add_argument("--out-dir", default=None, help="where outputs go (default: the system temp folder)")
     p.add_argument("--only", default=None, help="--all: only these cases, e.g. 100k,300k")
     p.add_argument("--save", default=None, help="--all: save the raw results as JSON here")
-    p.add_argument("--markdown", default=None, help="print the tables of a saved JSON and exit")
+    p.add_argument("--markdown", nargs="+", default=None,
+                   help="print the tables of saved results (--save JSON and/or files of RESULT lines) and exit")
+    p.add_argument("--max-other", type=float, default=float("inf"),
+                   help="--markdown: pool only repeats during which other processes used at most this many cores")
     args = p.parse_args(argv)
     if args.markdown:
-        print(markdown(json.loads(Path(args.markdown).read_text())))
+        print(markdown(load_results(args.markdown), max_other=args.max_other))
     elif args.all:
         run_all(args)
     else:

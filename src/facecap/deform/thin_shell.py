@@ -35,6 +35,8 @@ UnmarkedPieces = Literal["carry", "rigid"]
 _DEGENERATE_AREA = 1e-10
 # Unmarked pieces follow the average motion of this many nearest marked vertices.
 _CARRY_NEIGHBOURS = 32
+# Marker right-hand sides per sparse solve during set-up: bounds its memory.
+_RHS_PER_SOLVE = 32
 
 
 @dataclass(frozen=True)
@@ -234,7 +236,14 @@ class ThinShellSolver:
         self._factor: SpdFactor | None = SpdFactor(A_ff.tocsr(), backend=backend)
         self.backend = self._factor.backend
         Ww = np.zeros((nw, c.size), dtype=np.float32)  # welded-vertices-by-markers weights
-        Ww[solve_vertices[free_idx]] = -self._factor.solve(A_fc.toarray())
+        free_rows = solve_vertices[free_idx]
+        A_fc = A_fc.tocsc()
+        # A few markers' right-hand sides at a time: the dense float64 right-hand
+        # sides and solutions (and the solver's copies) of all K at once were the
+        # set-up's memory peak (over 2 GB at 700k vertices).
+        for first in range(0, c.size, _RHS_PER_SOLVE):
+            cols = slice(first, min(first + _RHS_PER_SOLVE, c.size))
+            Ww[free_rows, cols] = -self._factor.solve(A_fc[:, cols].toarray())
         Ww[cw, np.arange(c.size)] = 1.0
         if not keep_factor:  # free the factor before the weights are copied into the product
             self._factor.free()
