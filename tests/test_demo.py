@@ -17,7 +17,13 @@ def test_demo_writes_the_animation_report_and_pictures(tmp_path, capsys):
     assert V.shape == (120, 9409, 3)
     assert (out / "animation" / "performance.usdc").is_file()
     assert summary["animface_take"]["max_flipped_triangles_in_any_frame"] == 0
-    for name in ("frame_comparison.png", "dense_error_over_time.png", "marker_residuals.png"):
+    scans = summary["scan_workflow"]
+    errors = scans["error_after_each_mm"]
+    assert all(b <= a + 1e-9 for a, b in zip(errors, errors[1:]))  # Fig. 8: monotone in the number of scans
+    assert max(scans["registration_mm"]) < 0.2
+    assert scans["blend"]["mean_mm"] < 0.8  # the blended scans against the generator's ground truth
+    for name in ("frame_comparison.png", "dense_error_over_time.png", "marker_residuals.png",
+                 "scan_selection.png", "methods_error_comparison.png", "methods_error_over_time.png"):
         image = imread(out / "pictures" / name)
         assert image.ndim == 3 and image.std() > 0.01  # a picture, not a blank canvas
     # a second run replaces the first; no staging folders are left behind

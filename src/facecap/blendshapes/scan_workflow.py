@@ -91,7 +91,8 @@ def plan_scans(
 
         counts = np.arange(1, len(plan.frames) + 1, dtype=np.float64)
         plot_series(
-            counts, {"reconstruction error (RMS)": plan.error_after_each,
+            counts, {"all frames (RMS)": plan.error_after_each,
+                     "worst frame (RMS over its markers; the stopping rule)": plan.worst_frame_after_each,
                      "tolerance": np.full(counts.size, plan.tolerance_mm)},
             plot_path, ylabel="marker reconstruction error (mm)", xlabel="number of scanned expressions",
             title=f"Scans needed for {take.n_frames} frames (tolerance {100 * tolerance:.2g}% of "
