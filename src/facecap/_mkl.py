@@ -64,7 +64,8 @@ class MklBlas:
 def mkl_blas() -> MklBlas | None:
     """The MKL bindings, or ``None`` where MKL cannot be loaded."""
     path = locate_mkl_runtime()
-    if path is None:
+    # The bindings are LP64 (32-bit MKL_INT); this variable switches libmkl_rt to 64-bit.
+    if path is None or "ILP64" in os.environ.get("MKL_INTERFACE_LAYER", "").upper():
         return None
     try:
         return MklBlas(ctypes.CDLL(path))

@@ -34,7 +34,7 @@ def test_float32_product_matches_float64_einsum(workers, frames):
     np.testing.assert_allclose(out, _reference(W, D, rest), rtol=0, atol=1e-4)
 
 
-def test_numpy_fallback_matches_mkl_path():
+def test_numpy_fallback_matches_float64_einsum():
     W = _shell_like_weights(1000, 9, 2)
     rng = np.random.default_rng(3)
     D = rng.normal(size=(4, 9, 3)).astype(np.float32)
@@ -73,6 +73,48 @@ def test_int16_sums_do_not_overflow_in_the_worst_case():
     rest = np.zeros((64, 3), np.float32)
     err = np.abs(product.apply_into(D, rest, out) - _reference(W, D, rest))
     assert err.max() <= product.error_bound_mm(50.0) + 1e-3
+    # the invariant itself: |quantised weights| summed over markers, times the largest
+    # quantised displacement, stays below 2**31 for every vertex
+    assert int(np.abs(product._blocks.astype(np.int64)).sum(axis=1).max()) * 32767 < 2**31
+
+
+@pytest.mark.skipif(not HAVE_MKL, reason="the int16 path runs on MKL's integer GEMM")
+def test_int16_bound_ignores_vertices_that_never_move():
+    # rows of zeros are what --unmarked-pieces rigid leaves in the thin-shell weights
+    W = _shell_like_weights(400, 20, 9)
+    W[::7] = 0.0
+    product = BasisProduct(W, precision="int16", block_vertices=128)
+    D = np.random.default_rng(10).normal(scale=4.0, size=(3, 20, 3)).astype(np.float32)
+    out = np.empty((3, 400, 3), np.float32)
+    err = np.abs(product.apply_into(D, np.zeros((400, 3), np.float32), out) - _reference(W, D, 0.0))
+    bound = product.error_bound_mm(float(np.abs(D).max()))
+    assert np.all(out[:, ::7] == 0.0)
+    assert err.max() <= bound + 1e-6 and bound < 1e-3 * float(np.abs(D).max())
+
+
+@pytest.mark.skipif(not HAVE_MKL, reason="MKL's thread setting")
+def test_mkl_threads_of_the_calling_thread_are_restored():
+    import ctypes
+
+    from facecap._mkl import locate_mkl_runtime
+
+    get_threads = ctypes.CDLL(locate_mkl_runtime()).MKL_Get_Max_Threads
+    before = get_threads()
+    W = _shell_like_weights(300, 5, 11)
+    BasisProduct(W, workers=1).apply_into(np.ones((2, 5, 3), np.float32), np.zeros((300, 3), np.float32),
+                                          np.empty((2, 300, 3), np.float32))
+    assert get_threads() == before
+
+
+@pytest.mark.parametrize("precision", ["float32", "int16"])
+def test_nan_displacements_are_refused(precision):
+    if precision == "int16" and not HAVE_MKL:
+        pytest.skip("the int16 path runs on MKL's integer GEMM")
+    product = BasisProduct(_shell_like_weights(50, 4, 12), precision=precision)
+    D = np.ones((2, 4, 3), np.float32)
+    D[1, 2, 0] = np.nan
+    with pytest.raises(InputError, match="NaN"):
+        product.apply_into(D, np.zeros((50, 3), np.float32), np.empty((2, 50, 3), np.float32))
 
 
 def test_int16_without_mkl_or_too_many_markers_is_a_clear_error(monkeypatch):

@@ -112,6 +112,11 @@ def test_pieces_without_markers_never_make_the_system_singular(policy):
     expected = 2.0 if policy == "carry" else 0.0
     np.testing.assert_allclose(eye[:, 2], expected, atol=1e-4)  # a rigid move of the whole skin carries the eye
     assert solver.pieces.unmarked_pieces and solver.pieces.n_pieces == 2
+    # the reference per-frame sparse solve follows the same rule for the unmarked piece
+    with pytest.warns(FacecapWarning, match="carry no marker"):
+        kept = ThinShellSolver(V2, F2, c, unmarked_pieces=policy, keep_factor=True)
+    d_random = np.random.default_rng(13).normal(size=(10, 3))
+    np.testing.assert_allclose(kept.solve_direct(d_random), kept.displacements(d_random), atol=1e-5)
 
 
 def test_degenerate_faces_are_left_out():

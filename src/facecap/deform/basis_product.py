@@ -52,7 +52,7 @@ _INT16_ROW_SUM = 65000
 _MAX_MARKERS_INT16 = 240
 
 
-@numba.njit(nogil=True, cache=True, fastmath=True)
+@numba.njit(nogil=True, fastmath=True)
 def _interleave_float32(product, rest, start, out):  # pragma: no cover - compiled
     """out[f, start + i, a] = product[a b + f, i] + rest[start + i, a], for the block's vertices."""
     b = out.shape[0]
@@ -67,7 +67,7 @@ def _interleave_float32(product, rest, start, out):  # pragma: no cover - compil
             o[3 * i + 2] = pz[i] + r[3 * i + 2]
 
 
-@numba.njit(nogil=True, cache=True, fastmath=True)
+@numba.njit(nogil=True, fastmath=True)
 def _interleave_int32(product, vertex_scale, row_scale, rest, start, out):  # pragma: no cover - compiled
     """As :func:`_interleave_float32`, rescaling the int32 sums by vertex and by (axis, frame)."""
     b = out.shape[0]
@@ -82,6 +82,13 @@ def _interleave_int32(product, vertex_scale, row_scale, rest, start, out):  # pr
             o[3 * i] = np.float32(px[i]) * (cx * s[i]) + r[3 * i]
             o[3 * i + 1] = np.float32(py[i]) * (cy * s[i]) + r[3 * i + 1]
             o[3 * i + 2] = np.float32(pz[i]) * (cz * s[i]) + r[3 * i + 2]
+
+
+for _kernel in (_interleave_float32, _interleave_int32):
+    try:  # compiled once per machine and kept; where no cache folder is writable, compiled per process
+        _kernel.enable_caching()
+    except RuntimeError:
+        pass
 
 
 def _available_cores() -> int:
@@ -163,31 +170,39 @@ class BasisProduct:
             raise InputError(f"precision='int16' supports at most {_MAX_MARKERS_INT16} markers, got {K}")
         self.precision: str = precision
         self.backend: str = "mkl" if self._mkl is not None else "numpy"
-        self.workers = max(1, int(workers)) if workers is not None else _available_cores()
+        # Without MKL, numpy's BLAS threads itself: one worker avoids cores x BLAS threads.
+        default_workers = _available_cores() if self._mkl is not None else 1
+        self.workers = max(1, int(workers)) if workers is not None else default_workers
         self.n_vertices, self.n_markers = int(n), int(K)
         self.block_vertices = rows = int(min(block_vertices, n))
         n_blocks = -(-n // rows)
 
+        self._blocks = np.zeros((n_blocks, K, rows), dtype=np.float32 if precision == "float32" else np.int16)
         if precision == "float32":
-            quantised, self._vertex_scale = W.astype(np.float32, copy=False), None
+            self._vertex_scale = None
             self._relative_error = 0.0
+            for j in range(n_blocks):
+                part = W[j * rows : (j + 1) * rows]
+                self._blocks[j, :, : part.shape[0]] = part.T
         else:
-            abs_max = np.abs(W).max(axis=1)
-            abs_sum = np.abs(W).sum(axis=1)
-            # Per-vertex scale: each weight fits int16 and the row's |sum| keeps int32 sums safe.
-            with np.errstate(divide="ignore"):
-                scale = np.minimum(_INT16_MAX / abs_max, _INT16_ROW_SUM / abs_sum)
-            scale = np.where(abs_max > 0, scale, 1.0)
-            quantised = np.clip(np.rint(W * scale[:, None]), -_INT16_MAX, _INT16_MAX).astype(np.int16)
-            self._vertex_scale = (1.0 / scale).astype(np.float32)
-            # Worst case per mm of the largest displacement: weight rounding (<= 0.5/scale
-            # on each of K terms) plus displacement rounding (<= 0.5/32767 of the
-            # largest, times the row's absolute weight sum).
-            self._relative_error = float(np.max(0.5 * K / scale + 0.5 * abs_sum / _INT16_MAX))
-        self._blocks = np.zeros((n_blocks, K, rows), dtype=quantised.dtype)
-        for j in range(n_blocks):
-            part = quantised[j * rows : (j + 1) * rows]
-            self._blocks[j, :, : part.shape[0]] = part.T
+            self._vertex_scale = np.empty(n, np.float32)
+            worst = 0.0
+            for j in range(n_blocks):  # block by block: no full-size float64 temporaries
+                part = np.asarray(W[j * rows : (j + 1) * rows], dtype=np.float64)
+                abs_max = np.abs(part).max(axis=1)
+                abs_sum = np.abs(part).sum(axis=1)
+                # Per-vertex scale: each weight fits int16 and the row's |sum| keeps int32 sums safe.
+                with np.errstate(divide="ignore"):
+                    scale = np.where(abs_max > 0, np.minimum(_INT16_MAX / abs_max, _INT16_ROW_SUM / abs_sum), 1.0)
+                q = np.clip(np.rint(part * scale[:, None]), -_INT16_MAX, _INT16_MAX)
+                self._blocks[j, :, : part.shape[0]] = q.T
+                self._vertex_scale[j * rows : j * rows + part.shape[0]] = 1.0 / scale
+                # Error per mm of the largest displacement d: sum_k |q_k/s - w_k| |d_k| (weight
+                # rounding) + sum_k |q_k|/s |e_k| with |e_k| <= d/(2*32767) (displacement rounding).
+                dequantised = q / scale[:, None]
+                rows_bound = np.abs(dequantised - part).sum(axis=1) + np.abs(dequantised).sum(axis=1) / (2 * _INT16_MAX)
+                worst = max(worst, float(rows_bound.max()))
+            self._relative_error = worst
         self._zero_offset = np.zeros(1, np.int32)
 
     def error_bound_mm(self, max_displacement_mm: float) -> float:
@@ -241,26 +256,34 @@ class BasisProduct:
         if b == 0:
             return out
         X = np.ascontiguousarray(D.transpose(2, 0, 1).reshape(3 * b, K))  # rows (axis, frame)
+        if not np.isfinite(X).all():
+            raise InputError("marker_displacements: contain NaN or infinite values (fill the gaps first)")
         if self._vertex_scale is None:
             row_scale = None
         else:
-            peak = np.abs(X).max(axis=1)
-            row_scale = np.where(peak > 0, peak / _INT16_MAX, 1.0).astype(np.float32)
-            X = np.clip(np.rint(X / row_scale[:, None]), -_INT16_MAX, _INT16_MAX).astype(np.int16)
+            peak = np.abs(X).max(axis=1).astype(np.float64)
+            scale = np.where(peak > 1e-30, peak / _INT16_MAX, 1.0)
+            X = np.clip(np.rint(X / scale[:, None]), -_INT16_MAX, _INT16_MAX).astype(np.int16)
+            row_scale = scale.astype(np.float32)
 
         rows, n_blocks = self.block_vertices, self._blocks.shape[0]
         next_block = itertools.count()  # shared by the workers: next() is atomic under the GIL
 
         def work() -> None:
-            if self._mkl is not None:
-                self._mkl.set_num_threads_local(1)  # one core per worker; the workers are the parallelism
-            product = np.empty((3 * b, rows), np.float32 if row_scale is None else np.int32)
-            while (j := next(next_block)) < n_blocks:
-                self._block_product(j, X, product)
-                if row_scale is None:
-                    _interleave_float32(product, rest, j * rows, out)
-                else:
-                    _interleave_int32(product, self._vertex_scale, row_scale, rest, j * rows, out)
+            # one core per worker (the workers are the parallelism); restored, since
+            # with one worker this runs in the caller's thread, where PARDISO may run next
+            previous = self._mkl.set_num_threads_local(1) if self._mkl is not None else None
+            try:
+                product = np.empty((3 * b, rows), np.float32 if row_scale is None else np.int32)
+                while (j := next(next_block)) < n_blocks:
+                    self._block_product(j, X, product)
+                    if row_scale is None:
+                        _interleave_float32(product, rest, j * rows, out)
+                    else:
+                        _interleave_int32(product, self._vertex_scale, row_scale, rest, j * rows, out)
+            finally:
+                if previous is not None:
+                    self._mkl.set_num_threads_local(previous)
 
         workers = min(self.workers, n_blocks)
         if workers == 1:
