@@ -184,7 +184,10 @@ def register_scans(
         from .refine_registration import refine_registration
 
         t = time.perf_counter()
-        refined = refine_registration(registered, template.faces, scans_mocap)
+        # The cylinder's axis is the face's up direction: the template's +Y (the convention of
+        # DCC tools and of the ICT model) carried into the stabilised mocap frame the bases live in.
+        up = output_from_mocap[:3, :3].T @ np.array([0.0, 1.0, 0.0])
+        refined = refine_registration(registered, template.faces, scans_mocap, axis=up)
         registered = refined.vertices
         timings["fine_scale_registration_s"] = time.perf_counter() - t
         for i in range(K):
