@@ -44,7 +44,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_select_scan_frames import Window  # noqa: E402
+from _load import Window  # noqa: E402
 
 from facecap.blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402

@@ -36,8 +36,9 @@ import json
 import os
 import platform
 import statistics
-import time
+import sys
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -46,32 +47,8 @@ from scipy.optimize import nnls
 from facecap.blendshapes import nnls_weights, select_scan_frames
 from facecap.synth import generate_performance
 
-
-def _busy_jiffies() -> int:
-    with open("/proc/stat") as f:
-        fields = [int(x) for x in f.readline().split()[1:]]
-    user, nice, system, _idle, _iowait, irq, softirq, steal = fields[:8]
-    return user + nice + system + irq + softirq + steal
-
-
-class Window:
-    """Wall time of a block, plus the CPU (in cores) this process and others used meanwhile."""
-
-    def __enter__(self) -> Window:  # noqa: PYI034
-        self._hz = os.sysconf("SC_CLK_TCK")
-        t = os.times()
-        self._mine = t.user + t.system
-        self._busy = _busy_jiffies()
-        self._t = time.perf_counter()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.seconds = time.perf_counter() - self._t
-        t = os.times()
-        mine = t.user + t.system - self._mine
-        busy = (_busy_jiffies() - self._busy) / self._hz
-        self.my_cores = mine / max(self.seconds, 1e-9)
-        self.other_cores = max(busy - mine, 0.0) / max(self.seconds, 1e-9)
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _load import Window  # noqa: E402
 
 
 def timed(fn: Callable[[], Any], repeats: int) -> tuple[Any, dict[str, Any]]:

@@ -50,12 +50,13 @@ import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _meshes  # noqa: E402
+from _load import Window  # noqa: E402
 
 N_MARKERS = 90
 RATE_HZ = 60.0
@@ -63,33 +64,6 @@ GB = 1e9
 
 
 # --------------------------------------------------------------------------- measuring
-
-
-def _busy_jiffies() -> int:
-    with open("/proc/stat") as f:
-        fields = [int(x) for x in f.readline().split()[1:]]
-    user, nice, system, idle, iowait, irq, softirq, steal = fields[:8]
-    return user + nice + system + irq + softirq + steal
-
-
-class Window:
-    """Wall time of a block, plus the CPU (in cores) other processes used meanwhile."""
-
-    def __enter__(self) -> "Window":
-        self._hz = os.sysconf("SC_CLK_TCK")
-        t = os.times()
-        self._mine = t.user + t.system
-        self._busy = _busy_jiffies()
-        self._t = time.perf_counter()
-        return self
-
-    def __exit__(self, *exc: Any) -> None:
-        self.seconds = time.perf_counter() - self._t
-        t = os.times()
-        mine = t.user + t.system - self._mine
-        busy = (_busy_jiffies() - self._busy) / self._hz
-        self.my_cores = mine / max(self.seconds, 1e-9)
-        self.other_cores = max(busy - mine, 0.0) / max(self.seconds, 1e-9)
 
 
 def _peak_rss_gb() -> float:

@@ -13,7 +13,7 @@ import numpy as np
 from .errors import InputError, MarkerError, MeshError
 from .typing import FloatArray, IntArray
 
-__all__ = ["as_vertices", "as_faces", "as_marker_positions", "as_points", "as_positive"]
+__all__ = ["as_vertices", "as_faces", "as_marker_positions", "as_points", "as_positive", "as_rigid_transform"]
 
 
 def as_points(X: Any, *, name: str, dim: int = 3, allow_nan: bool = False) -> FloatArray:
@@ -89,3 +89,31 @@ def as_positive(x: Any, *, name: str, allow_zero: bool = False) -> float:
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         raise InputError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {x!r}")
     return v
+
+
+def as_rigid_transform(T: Any, *, name: str, project: bool = False) -> FloatArray:
+    """Return ``T`` as a finite (4, 4) float64 rigid transform, or raise.
+
+    With ``project=True`` the rotation block is replaced by the nearest proper
+    rotation (for a caller's matrix that drifted, e.g. a starting pose);
+    otherwise it must already be orthonormal with determinant +1, and the last
+    row must be 0 0 0 1.
+    """
+    try:
+        A = np.array(T, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"{name}: expected a (4, 4) rigid transform ({exc})") from None
+    if A.shape != (4, 4) or not np.all(np.isfinite(A)):
+        raise InputError(f"{name}: expected a finite (4, 4) rigid transform, got shape {A.shape}")
+    R = A[:3, :3]
+    if project:
+        U, _, Vt = np.linalg.svd(R)
+        A[:3, :3] = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+        return A
+    if (
+        not np.allclose(R @ R.T, np.eye(3), atol=1e-6)
+        or np.linalg.det(R) < 0
+        or not np.allclose(A[3], [0.0, 0.0, 0.0, 1.0], atol=1e-12)
+    ):
+        raise InputError(f"{name}: expected a rotation (orthonormal, det +1) and translation, last row 0 0 0 1")
+    return A

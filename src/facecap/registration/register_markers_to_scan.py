@@ -13,8 +13,8 @@ from ..errors import InputError, MarkerError
 from ..markers.rigid_fit import rigid_fit
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
-from ..validate import as_points, as_positive
-from .rigid_icp import IcpResult, _as_init, _check_units, _inlier_mask, _solve, _Surface
+from ..validate import as_points, as_positive, as_rigid_transform
+from .rigid_icp import IcpResult, _check_units, _inlier_mask, _solve, _Surface
 
 __all__ = ["MarkerRegistration", "register_markers_to_scan"]
 
@@ -242,7 +242,7 @@ def register_markers_to_scan(
     S = None if subspace is None else _as_subspace(subspace, M)
 
     if init is not None:
-        init = _as_init(init)
+        init = as_rigid_transform(init, name="init", project=True)
     elif template_markers is not None:
         P = as_points(template_markers, name="template_markers", allow_nan=True)
         if P.shape[0] != M:

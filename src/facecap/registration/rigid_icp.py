@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import itertools
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import igl
 import numpy as np
@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import InputError, MeshError, SolverError
 from ..markers.rigid_fit import rigid_fit
 from ..typing import BoolArray, FloatArray, IntArray
-from ..validate import as_faces, as_points, as_positive, as_vertices
+from ..validate import as_faces, as_points, as_positive, as_rigid_transform, as_vertices
 
 __all__ = ["IcpResult", "rigid_icp"]
 
@@ -409,25 +409,12 @@ def rigid_icp(
     offset_mm = float(offset_mm)
     if not np.isfinite(offset_mm):
         raise InputError(f"offset_mm: expected a finite number, got {offset_mm!r}")
-    T0 = None if init is None else _as_init(init)
+    T0 = None if init is None else as_rigid_transform(init, name="init", project=True)
     if size_tolerance is not None:
         _check_units(X[finite], V, F, as_positive(size_tolerance, name="size_tolerance"))
     surface = _Surface(V, F, reject_boundary=bool(reject_boundary))
     return _solve(X, surface, T0, method=method, max_iterations=int(max_iterations), offset_mm=offset_mm,
                   trim=float(trim), tolerance_mm=tolerance_mm)
-
-
-def _as_init(init: Any) -> FloatArray:
-    """A (4, 4) starting motion with its rotation part projected onto the rotations."""
-    try:
-        T0 = np.array(init, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"init: expected a (4, 4) rigid transform ({exc})") from None
-    if T0.shape != (4, 4) or not np.all(np.isfinite(T0)):
-        raise InputError(f"init: expected a finite (4, 4) rigid transform, got shape {T0.shape}")
-    U, _, Vt = np.linalg.svd(T0[:3, :3])  # the nearest rotation, should the caller's matrix have drifted
-    T0[:3, :3] = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
-    return T0
 
 
 def _solve(

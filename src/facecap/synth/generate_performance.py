@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import InputError
 from ..structures import MarkerSequence, Mesh
 from ..typing import FloatArray, IntArray
-from ..validate import as_faces, as_positive
+from ..validate import as_faces, as_positive, as_rigid_transform
 from .expression_curves import smooth_expression_curves
 from .ict_sample import IctSample, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
@@ -168,20 +168,6 @@ def _scaled_motion(rng: np.random.Generator, n_frames: int, rate: float, amplitu
     sig, ref = _smooth_signals(rng, n_frames, rate, 3)
     peak = float(np.linalg.norm(ref, axis=1).max())
     return sig * (amplitude / peak) if peak > 0 and amplitude > 0 else np.zeros_like(sig)
-
-
-def _as_rigid(X: Any, name: str) -> FloatArray:
-    try:
-        T = np.array(X, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(f"{name}: expected a (4, 4) rigid transform") from None
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise InputError(f"{name}: expected a finite (4, 4) rigid transform, got shape {T.shape}")
-    R = T[:3, :3]
-    if (np.abs(R @ R.T - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0
-            or np.abs(T[3] - [0, 0, 0, 1]).max() > 1e-12):
-        raise InputError(f"{name}: expected a rotation (orthonormal, det +1) and translation, last row 0 0 0 1")
-    return T
 
 
 def _default_mocap_frame(rng: np.random.Generator) -> FloatArray:
@@ -398,7 +384,7 @@ def generate_performance(
     if n_markers is not None:
         n_markers = _count(n_markers, "n_markers", minimum=1)
     if mocap_frame is not None:
-        mocap_frame = _as_rigid(mocap_frame, "mocap_frame")
+        mocap_frame = as_rigid_transform(mocap_frame, name="mocap_frame")
     names = sample.expression_names
 
     if curves is None:

@@ -16,7 +16,7 @@ from ..errors import InputError, MeshError
 from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from ..units import normalize_unit
-from ..validate import as_faces, as_positive, as_vertices
+from ..validate import as_faces, as_positive, as_rigid_transform, as_vertices
 
 __all__ = ["ScannedExpression", "scan_expression"]
 
@@ -66,23 +66,6 @@ class ScannedExpression:
     hole_centers: FloatArray
     hole_radii: FloatArray
     pitch_mm: float
-
-
-def _as_rigid(T: Any, *, name: str) -> FloatArray:
-    try:
-        A = np.asarray(T, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name}: expected a (4, 4) rigid transform ({exc})") from None
-    if A.shape != (4, 4) or not np.all(np.isfinite(A)):
-        raise InputError(f"{name}: expected a finite (4, 4) rigid transform, got shape {A.shape}")
-    R = A[:3, :3]
-    if (
-        not np.allclose(R @ R.T, np.eye(3), atol=1e-6)
-        or np.linalg.det(R) < 0
-        or not np.allclose(A[3], [0.0, 0.0, 0.0, 1.0])
-    ):
-        raise InputError(f"{name}: expected a rotation (orthonormal, det +1) and translation, last row 0 0 0 1")
-    return np.ascontiguousarray(A)
 
 
 def _boundary_edges(F: IntArray) -> IntArray:
@@ -374,7 +357,7 @@ def scan_expression(
         X[:3, :3] = Rotation.random(rng=rng_frame).as_matrix()
         X[:3, 3] = rng_frame.uniform(-500.0, 500.0, 3)
     else:
-        X = _as_rigid(scanner_from_face, name="scanner_from_face")
+        X = as_rigid_transform(scanner_from_face, name="scanner_from_face")
     mesh = Mesh(noisy @ X[:3, :3].T + X[:3, 3], faces_out, source_unit=unit, source_path="<scanned>")
     return ScannedExpression(
         mesh=mesh,

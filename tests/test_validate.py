@@ -1,0 +1,42 @@
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from facecap.errors import InputError
+from facecap.validate import as_rigid_transform
+
+
+def _rigid(angle_deg=30.0, t=(1.0, 2.0, 3.0)):
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("xyz", [angle_deg, 10.0, -5.0], degrees=True).as_matrix()
+    T[:3, 3] = t
+    return T
+
+
+def test_a_rigid_transform_passes_unchanged():
+    T = _rigid()
+    np.testing.assert_array_equal(as_rigid_transform(T.tolist(), name="T"), T)
+
+
+@pytest.mark.parametrize("bad, message", [
+    (np.eye(3), "shape"),
+    (np.full((4, 4), np.nan), "finite"),
+    (np.diag([1.0, 1.0, -1.0, 1.0]), "det"),          # a reflection
+    (np.diag([2.0, 1.0, 1.0, 1.0]), "orthonormal"),    # a scale
+    ("not a matrix", "rigid transform"),
+])
+def test_what_is_not_rigid_is_named(bad, message):
+    with pytest.raises(InputError, match=f"mocap_frame: .*{message}"):
+        as_rigid_transform(bad, name="mocap_frame")
+
+
+def test_project_gives_the_nearest_rotation():
+    T = _rigid()
+    drifted = T.copy()
+    drifted[:3, :3] += 1e-3 * np.random.default_rng(0).normal(size=(3, 3))
+    R = as_rigid_transform(drifted, name="init", project=True)[:3, :3]
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(R) > 0
+    # the orthogonal Procrustes solution: scipy's polar decomposition gives the same rotation
+    from scipy.linalg import polar
+    np.testing.assert_allclose(R, polar(drifted[:3, :3])[0], atol=1e-12)
