@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import resource
 import time
 from typing import Any
 
@@ -38,3 +39,8 @@ class Window:
         busy = (_busy_jiffies() - self._busy) / self._hz
         self.my_cores = mine / max(self.seconds, 1e-9)
         self.other_cores = max(busy - mine, 0.0) / max(self.seconds, 1e-9)
+
+
+def peak_rss_gb() -> float:
+    """Peak resident memory of this process so far, GB (10^9 bytes); ``ru_maxrss`` is in KiB on Linux."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9

@@ -34,7 +34,6 @@ from __future__ import annotations
 import argparse
 import json
 import platform
-import resource
 import shutil
 import sys
 import tempfile
@@ -44,7 +43,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _load import Window  # noqa: E402
+from _load import Window, peak_rss_gb  # noqa: E402
 
 from facecap.blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402
@@ -82,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
         with Window() as w_reg:
             report = register_planned_scans(root / "plan.json", files.markers, scan_paths, root / "bases",
                                             progress=False)
-        rss_after_registration = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6
+        rss_after_registration = peak_rss_gb()
 
         with Window() as w_blend:
             blend = blend_take(root / "bases", files.markers, root / "blend", progress=False)
@@ -117,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
             "weights_max_diff": float(np.abs(w_ref - weights).max()),
             "baseline_einsum_s": w_einsum.seconds,
             "peak_rss_gb_after_registration": rss_after_registration,
-            "peak_rss_gb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6,
+            "peak_rss_gb": peak_rss_gb(),
         }
     finally:
         shutil.rmtree(root, ignore_errors=True)

@@ -41,14 +41,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import resource
 import shutil
 import statistics
 import subprocess
 import sys
 import tempfile
 import time
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -56,7 +54,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _meshes  # noqa: E402
-from _load import Window  # noqa: E402
+from _load import Window, peak_rss_gb  # noqa: E402
 
 N_MARKERS = 90
 RATE_HZ = 60.0
@@ -64,10 +62,6 @@ GB = 1e9
 
 
 # --------------------------------------------------------------------------- measuring
-
-
-def _peak_rss_gb() -> float:
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / GB  # Linux: KiB
 
 
 def _vm_kb(field: str) -> int:
@@ -103,7 +97,7 @@ class MemoryProbe:
         class _Probed(base):  # type: ignore[misc, valid-type]
             def __init__(self, *a: Any, **k: Any) -> None:
                 super().__init__(*a, **k)
-                probe.setup_peak_gb = _peak_rss_gb()
+                probe.setup_peak_gb = peak_rss_gb()
                 with open("/proc/self/clear_refs", "w") as f:
                     f.write("5")
                 probe._thread = threading.Thread(target=probe._sample, daemon=True)
@@ -121,7 +115,7 @@ class MemoryProbe:
         self._stop = True
         if self._thread is not None:
             self._thread.join()
-        after = _peak_rss_gb()
+        after = peak_rss_gb()
         rss = [r for _, r in self.samples]
         q = max(1, len(rss) // 4)
         return {
@@ -160,22 +154,8 @@ def _build_solver(mesh: _meshes.BenchMesh, markers: np.ndarray, **kw: Any) -> tu
 
 
 def stream_frames(solver: Any, writer: Any, disp32: np.ndarray, rest32: np.ndarray, batch: int) -> None:
-    """The deform-and-write loop of ``animate_scan`` (two buffers, one writer thread), verbatim in substance."""
-    T, n = disp32.shape[0], rest32.shape[0]
-    buffers = [np.empty((min(batch, T), n, 3), np.float32) for _ in range(2)]
-    pending: list[Any] = [None, None]
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        for k, start in enumerate(range(0, T, batch)):
-            stop = min(start + batch, T)
-            slot = k % 2
-            if pending[slot] is not None:
-                pending[slot].result()
-            out = buffers[slot][: stop - start]
-            solver.deform_into(disp32[start:stop], rest32, out)
-            pending[slot] = pool.submit(writer.write_frames, start, out)
-        for p in pending:
-            if p is not None:
-                p.result()
+    """The deform-and-write loop of ``animate_scan``: the same ``PerformanceWriter.stream`` call."""
+    writer.stream(lambda start, stop, out: solver.deform_into(disp32[start:stop], rest32, out), batch_frames=batch)
 
 
 def _scan(mesh: _meshes.BenchMesh) -> Any:
@@ -314,7 +294,7 @@ def run_stream(args: argparse.Namespace) -> dict[str, Any]:
     labels = tuple(f"M{k:03d}" for k in range(N_MARKERS))
     take = MarkerSequence(mesh.V[markers][None] + motion, labels, RATE_HZ)
     corr = Correspondence(labels, np.repeat(markers[:, None], 3, axis=1), np.tile([1.0, 0.0, 0.0], (N_MARKERS, 1)))
-    rss_inputs = _peak_rss_gb()
+    rss_inputs = peak_rss_gb()
     probe = MemoryProbe()
     probe.install()
     out_root = Path(tempfile.mkdtemp(prefix="facecap-bench-", dir=args.out_dir))
@@ -336,10 +316,10 @@ def run_stream(args: argparse.Namespace) -> dict[str, Any]:
 
 def run_setup(args: argparse.Namespace) -> dict[str, Any]:
     mesh, markers, _ = _inputs(args.case, 1)
-    rss0 = _peak_rss_gb()
+    rss0 = peak_rss_gb()
     solver, w = _build_solver(mesh, markers, backend=args.backend)
     return {"backend": solver.backend, "setup_s": w.seconds, "other_cores": w.other_cores,
-            "peak_rss_gb": _peak_rss_gb(), "peak_rss_inputs_gb": rss0}
+            "peak_rss_gb": peak_rss_gb(), "peak_rss_inputs_gb": rss0}
 
 
 def run_one(args: argparse.Namespace) -> dict[str, Any]:

@@ -65,7 +65,7 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     take = read_markers(args.markers, unit=args.marker_units)
     corr = read_correspondence(args.map, scan)
     stabilize = _stabilize_option(args.stabilize)
-    exports = [e.strip().lower() for e in args.export.split(",") if e.strip()]
+    exports = _exports_option(args.export)
     if args.batch_frames < 1:
         raise FacecapError(f"--batch-frames: expected a positive integer, got {args.batch_frames}")
     result = animate_scan(
@@ -145,6 +145,11 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     for name, region in (summary.get("regions") or {}).items():
         print(f"  {name:>12}: mean {region['mean_mm']:.3f} mm, p95 {region['p95_mm']:.3f} mm, max {region['max_mm']:.3f} mm")
     return 0
+
+
+def _exports_option(text: str) -> list[str]:
+    """``--export obj,usd`` -> ['obj', 'usd'] (the writer names any it does not know)."""
+    return [e.strip().lower() for e in text.split(",") if e.strip()]
 
 
 def _stabilize_option(value: str) -> bool | list[str]:
@@ -233,7 +238,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
 def _cmd_blend(args: argparse.Namespace) -> int:
     from .blendshapes.scan_workflow import blend_take
 
-    exports = [e.strip().lower() for e in args.export.split(",") if e.strip()]
+    exports = _exports_option(args.export)
     report = blend_take(args.bases, args.markers, args.out, exports=exports, progress=not args.quiet)
     if not args.quiet:
         print(f"wrote {args.out}: {report['n_frames']} frames from {report['n_bases']} bases, "
@@ -255,7 +260,7 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
     register_planned_scans(plan_path, args.markers, args.scans, out / "bases", template_path=args.template,
                            scan_unit=args.scan_units, template_unit=args.template_units,
                            marker_offset_mm=args.marker_offset, refine=args.refine, progress=not args.quiet)
-    exports = [e.strip().lower() for e in args.export.split(",") if e.strip()]
+    exports = _exports_option(args.export)
     report = blend_take(out / "bases", args.markers, out / "animation", exports=exports, progress=not args.quiet)
     if not args.quiet:
         print(f"wrote {out}: plan.json, bases/, animation/ ({report['n_frames']} frames)")

@@ -134,7 +134,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
                     title="Marker conditioning: filter change and head-stabilisation residual")
 
         # --- the scan workflow (Huang et al. 2011) on the same take and face
-        scan_lines = _scan_workflow(stage, case, files, sample, shell_error, vertices, busy, progress)
+        scan_lines = _scan_workflow(stage, case, files, shell_error, vertices, busy, progress)
 
         # --- the real take on the same face
         real_lines = _animate_real_take(stage, sample, progress, render_mesh, plot_series)
@@ -170,7 +170,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     return lines
 
 
-def _scan_workflow(stage: Path, case, files, sample, shell_error, shell_vertices, frame: int, progress: bool) -> dict:
+def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, frame: int, progress: bool) -> dict:
     """Plan scans on the generated take, "scan" those expressions, register them and blend the take.
 
     The scans come from the ground truth through the scanner simulation

@@ -34,13 +34,16 @@ def test_float32_product_matches_float64_einsum(workers, frames):
     np.testing.assert_allclose(out, _reference(W, D, rest), rtol=0, atol=1e-4)
 
 
-def test_numpy_fallback_matches_float64_einsum():
+def test_numpy_fallback_matches_float64_einsum(monkeypatch):
+    import facecap.deform.basis_product as module
+
     W = _shell_like_weights(1000, 9, 2)
     rng = np.random.default_rng(3)
     D = rng.normal(size=(4, 9, 3)).astype(np.float32)
     rest = np.zeros((1000, 3), np.float32)
+    monkeypatch.setattr(module, "mkl_blas", lambda: None)  # what a machine without MKL runs
     product = BasisProduct(W, block_vertices=300)
-    product._mkl = None  # what a machine without MKL runs
+    assert product.backend == "numpy" and product.workers == 1  # numpy's BLAS threads itself
     out = np.empty((4, 1000, 3), np.float32)
     np.testing.assert_allclose(product.apply_into(D, rest, out), _reference(W, D, rest), atol=1e-5)
 
@@ -126,6 +129,20 @@ def test_int16_without_mkl_or_too_many_markers_is_a_clear_error(monkeypatch):
     monkeypatch.setattr(module, "mkl_blas", lambda: None)
     with pytest.raises(InputError, match="needs Intel MKL"):
         BasisProduct(np.ones((10, 3)), precision="int16")
+
+
+def test_vertex_rows_equal_an_indexed_copy():
+    W = _shell_like_weights(300, 6, 14)
+    rows = np.random.default_rng(15).integers(0, 300, size=700)
+    D = np.random.default_rng(16).normal(size=(3, 6, 3)).astype(np.float32)
+    rest = np.zeros((700, 3), np.float32)
+    indexed = BasisProduct(W, vertex_rows=rows, block_vertices=128)
+    copied = BasisProduct(W[rows], block_vertices=128)
+    assert indexed.n_vertices == 700
+    np.testing.assert_array_equal(indexed.apply_into(D, rest, np.empty((3, 700, 3), np.float32)),
+                                  copied.apply_into(D, rest, np.empty((3, 700, 3), np.float32)))
+    with pytest.raises(InputError, match="vertex_rows"):
+        BasisProduct(W, vertex_rows=np.array([0, 300]))
 
 
 @pytest.mark.parametrize("precision", ["float32", "int16"])

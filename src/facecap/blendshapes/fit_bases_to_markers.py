@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..deform.thin_shell import ThinShellSolver
+from ..deform.thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver
 from ..errors import InputError
 from ..typing import FloatArray, IntArray
 
@@ -18,8 +18,8 @@ def fit_bases_to_markers(
     marker_weights: FloatArray,
     frame_markers: FloatArray,
     *,
-    ks: float = 1.0,
-    kb: float = 100.0,
+    ks: float = DEFAULT_KS,
+    kb: float = DEFAULT_KB_MM2,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Deform each registered scan so its markers land exactly on its frame's markers.
 

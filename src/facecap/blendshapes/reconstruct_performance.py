@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from ..errors import InputError
 from ..io.write_performance import PerformanceWriter
@@ -97,24 +95,19 @@ def write_blended_performance(
         raise InputError(f"bases {Bs.shape} and weights {W.shape} do not match a template of {template.n_vertices} vertices")
     K, n, _ = Bs.shape
     T = W.shape[0]
+    if output_from_bases is not None:  # rotate the bases once; the translation scales with sum(w)
+        R = np.asarray(output_from_bases, dtype=np.float32)
+        Bs = Bs @ R[:3, :3].T
+        translation = R[:3, 3]
     flat = Bs.reshape(K, n * 3)
-    R = None if output_from_bases is None else np.asarray(output_from_bases, dtype=np.float32)
+
+    def compute(start: int, stop: int, out: np.ndarray) -> None:
+        np.matmul(W[start:stop], flat, out=out.reshape(stop - start, n * 3))
+        if output_from_bases is not None:
+            out += W[start:stop].sum(axis=1)[:, None, None] * translation
+
     with PerformanceWriter(out_dir, mesh=template, rate=rate, n_frames=T, exports=exports) as writer:
-        bar = tqdm(total=T, unit="frame", desc="blend", disable=not progress, leave=False)
-        with ThreadPoolExecutor(max_workers=1) as pool:
-            pending = None
-            for start in range(0, T, batch_frames):
-                stop = min(start + batch_frames, T)
-                block = (W[start:stop] @ flat).reshape(stop - start, n, 3)
-                if R is not None:
-                    block = block @ R[:3, :3].T + R[:3, 3]
-                if pending is not None:
-                    pending.result()
-                pending = pool.submit(writer.write_frames, start, block)
-                bar.update(stop - start)
-            if pending is not None:
-                pending.result()
-        bar.close()
+        writer.stream(compute, batch_frames=batch_frames, progress=progress, desc="blend")
         for name, content in (extra_files or {}).items():
             if name.endswith(".npy"):
                 np.save(writer.path(name), content)

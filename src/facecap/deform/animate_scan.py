@@ -6,13 +6,11 @@ import json
 import sys
 import time
 import warnings
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from ..errors import FacecapWarning, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
@@ -317,25 +315,8 @@ def animate_scan(
         **(extra_metadata or {}),
     }
     with PerformanceWriter(out_dir, mesh=scan, rate=markers.rate, n_frames=T, exports=exports) as writer:
-        buffers = [np.empty((min(batch_frames, T), n, 3), np.float32) for _ in range(2)]
-        pending = [None, None]
-        bar = tqdm(total=T, unit="frame", desc="animate", disable=not progress, leave=False)
-        with ThreadPoolExecutor(max_workers=1) as pool:
-            for k, start in enumerate(range(0, T, batch_frames)):
-                stop = min(start + batch_frames, T)
-                slot = k % 2
-                if pending[slot] is not None:
-                    pending[slot].result()  # the buffer is free once its write finished
-                out = buffers[slot][: stop - start]
-                solver.deform_into(disp32[start:stop], rest32, out)
-                pose = None if head_pose is None else head_pose[start:stop]
-                # one writer thread runs the writes in order while the next batch is computed
-                pending[slot] = pool.submit(writer.write_frames, start, out, head_pose=pose)
-                bar.update(stop - start)
-            for p in pending:
-                if p is not None:
-                    p.result()
-        bar.close()
+        writer.stream(lambda start, stop, out: solver.deform_into(disp32[start:stop], rest32, out),
+                      batch_frames=batch_frames, head_pose=head_pose, progress=progress, desc="animate")
         timings["deform_and_write_s"] = time.perf_counter() - t
         timings["frames_per_second"] = T / max(timings["deform_and_write_s"], 1e-9)
         timings["total_s"] = time.perf_counter() - t0

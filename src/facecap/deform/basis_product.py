@@ -1,8 +1,8 @@
 """Vertex displacements from marker displacements by one dense product per batch (the hot path).
 
-Every linear large-scale deformer in facecap (the thin shell, the warp-alone
-baseline) ends in the same per-frame step: each vertex moves by a fixed
-weighted sum of the K marker displacements. This module owns that step.
+A linear large-scale deformer (the thin shell) ends in a per-frame step where
+each vertex moves by a fixed weighted sum of the K marker displacements. This
+module owns that step.
 
 Why it is built the way it is (measured on the 2-core AVX-512 machine of
 ``benchmarks/RESULTS.md``, 714k vertices, 90 markers): the product itself is
@@ -119,6 +119,9 @@ class BasisProduct:
     block_vertices : int, default 1024
         Vertices per block. A block's product, ``(3 b, block_vertices)``, should
         stay in one core's L2 cache for the batch sizes used.
+    vertex_rows : (n,) int array, optional
+        Vertex ``i`` takes row ``vertex_rows[i]`` of ``weights`` (e.g. welded
+        duplicates sharing one row), without an (n, K) copy being made.
 
     Raises
     ------
@@ -152,17 +155,24 @@ class BasisProduct:
         precision: Precision = "float32",
         workers: int | None = None,
         block_vertices: int = 1024,
+        vertex_rows: np.ndarray | None = None,
     ) -> None:
         W = np.asarray(weights)
         if W.ndim != 2 or W.shape[0] == 0 or W.shape[1] == 0:
             raise InputError(f"weights: expected an (n, K) array, got shape {W.shape}")
         if not np.isfinite(W).all():
             raise InputError("weights: contain NaN or infinite values")
+        if vertex_rows is not None:
+            vertex_rows = np.asarray(vertex_rows)
+            if vertex_rows.ndim != 1 or vertex_rows.size == 0 or not np.issubdtype(vertex_rows.dtype, np.integer) \
+                    or vertex_rows.min() < 0 or vertex_rows.max() >= W.shape[0]:
+                raise InputError(f"vertex_rows: expected a non-empty (n,) array of rows of weights (0..{W.shape[0] - 1})")
+        rows_of = (lambda lo, hi: W[lo:hi]) if vertex_rows is None else (lambda lo, hi: W[vertex_rows[lo:hi]])
         if precision not in ("float32", "int16"):
             raise InputError(f"precision: expected 'float32' or 'int16', got {precision!r}")
         if int(block_vertices) < 1:
             raise InputError(f"block_vertices: expected a positive integer, got {block_vertices}")
-        n, K = W.shape
+        n, K = (W.shape[0] if vertex_rows is None else vertex_rows.size), W.shape[1]
         self._mkl = mkl_blas()
         if precision == "int16" and self._mkl is None:
             raise InputError("precision='int16' needs Intel MKL (the 'mkl' wheel), which did not load here")
@@ -182,13 +192,13 @@ class BasisProduct:
             self._vertex_scale = None
             self._relative_error = 0.0
             for j in range(n_blocks):
-                part = W[j * rows : (j + 1) * rows]
+                part = rows_of(j * rows, (j + 1) * rows)
                 self._blocks[j, :, : part.shape[0]] = part.T
         else:
             self._vertex_scale = np.empty(n, np.float32)
             worst = 0.0
             for j in range(n_blocks):  # block by block: no full-size float64 temporaries
-                part = np.asarray(W[j * rows : (j + 1) * rows], dtype=np.float64)
+                part = np.asarray(rows_of(j * rows, (j + 1) * rows), dtype=np.float64)
                 abs_max = np.abs(part).max(axis=1)
                 abs_sum = np.abs(part).sum(axis=1)
                 # Per-vertex scale: each weight fits int16 and the row's |sum| keeps int32 sums safe.
@@ -222,7 +232,7 @@ class BasisProduct:
 
     def dense_weights(self) -> np.ndarray:
         """The weights as (n, K) float32 (dequantised for int16)."""
-        W = self._blocks.transpose(0, 2, 1).reshape(-1, self.n_markers)[: self.n_vertices].astype(np.float32)
+        W = self._blocks.transpose(0, 2, 1).reshape(-1, self.n_markers)[: self.n_vertices].astype(np.float32, copy=False)
         if self._vertex_scale is not None:
             W *= self._vertex_scale[:, None]
         return W

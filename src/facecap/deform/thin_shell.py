@@ -270,7 +270,7 @@ class ThinShellSolver:
             unmarked = ~solve_mask[welded_index]
             self._direct = (A_fc.tocsr(), solve_vertices[free_idx], welded_index, solve_mask,
                             Ww[welded_index[unmarked]].astype(np.float64))
-        self.product = BasisProduct(Ww[welded_index], precision=precision)
+        self.product = BasisProduct(Ww, precision=precision, vertex_rows=welded_index)
         del Ww
 
         if self.pieces.unmarked_pieces:

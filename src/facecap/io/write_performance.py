@@ -19,10 +19,12 @@ from __future__ import annotations
 
 import json
 import os
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from ..errors import InputError
 from ..structures import Mesh
@@ -162,6 +164,53 @@ class PerformanceWriter:
                     if fmt in self.exports:
                         frame_path = self.staging / fmt / f"frame_{start + k:06d}.{fmt}"
                         write_mesh(self.mesh, frame_path, vertices=block_mm[k])
+
+    def stream(
+        self,
+        compute: Callable[[int, int, np.ndarray], Any],
+        *,
+        batch_frames: int = 32,
+        head_pose: np.ndarray | None = None,
+        progress: bool = False,
+        desc: str = "frames",
+    ) -> None:
+        """Compute every frame batch by batch and write it, the writes overlapping the next batch.
+
+        Two buffers of ``batch_frames`` frames and one writer thread, so memory
+        does not grow with the take and the disk works while the CPU does.
+
+        Parameters
+        ----------
+        compute : callable ``(start, stop, out) -> Any``
+            Fills ``out``, a (stop - start, n, 3) float32 array, with frames
+            ``start`` to ``stop`` in mm.
+        batch_frames : int, default 32
+        head_pose : (T, 4, 4) float array, optional
+            Passed on to :meth:`write_frames` batch by batch.
+        progress : bool, default False
+            Show a progress bar labelled ``desc``.
+        """
+        T, n = self.n_frames, self.mesh.n_vertices
+        buffers = [np.empty((min(batch_frames, T), n, 3), np.float32) for _ in range(2)]
+        pending: list[Any] = [None, None]
+        bar = tqdm(total=T, unit="frame", desc=desc, disable=not progress, leave=False)
+        try:
+            with ThreadPoolExecutor(max_workers=1) as pool:
+                for k, start in enumerate(range(0, T, batch_frames)):
+                    stop = min(start + batch_frames, T)
+                    slot = k % 2
+                    if pending[slot] is not None:
+                        pending[slot].result()  # the buffer is free once its write finished
+                    out = buffers[slot][: stop - start]
+                    compute(start, stop, out)
+                    pose = None if head_pose is None else head_pose[start:stop]
+                    pending[slot] = pool.submit(self.write_frames, start, out, head_pose=pose)
+                    bar.update(stop - start)
+                for future in pending:
+                    if future is not None:
+                        future.result()
+        finally:
+            bar.close()
 
     def path(self, name: str) -> Path:
         """Where to put an extra file (report, picture) in the staging folder."""

@@ -12,6 +12,7 @@ from ..errors import FacecapWarning, MarkerError
 from ..structures import MarkerSequence
 from .bilateral_filter import bilateral_filter
 from .fill_gaps import fill_gaps
+from .rigid_fit import RigidTransform
 from .stabilize_head import Stabilization, stabilize_head
 
 __all__ = ["ConditionedTake", "condition_take"]
@@ -166,7 +167,7 @@ def _smooth_stabilization(stab: Stabilization, positions: np.ndarray, sigma_fram
     rv = savgol_filter(rv, window, 3, axis=0, mode="interp")
     tt = savgol_filter(tt, window, 3, axis=0, mode="interp")
     R_s = (mean * Rotation.from_rotvec(rv)).as_matrix()
-    moved = np.einsum("tij,tkj->tki", R_s, positions) + tt[:, None]
+    moved = RigidTransform(R_s, tt, np.full(len(R_s), np.nan)).apply(positions)
     stable = stab.stable_markers
     target = stab.positions[rest_frame, stable]
     with warnings.catch_warnings():
