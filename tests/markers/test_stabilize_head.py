@@ -52,6 +52,24 @@ def test_automatic_choice_finds_the_headband_despite_gaps(synthetic_take) -> Non
     assert np.nanmax(out.residual_rms) < 0.3
 
 
+def test_a_skin_patch_moving_as_one_does_not_beat_a_wider_headband(synthetic_take) -> None:
+    # Four forehead markers slide together by up to 3 mm (a brow raise): their mutual distances
+    # never change, and with a little less noise than the band's they look the more rigid set.
+    take = synthetic_take(n_frames=600, n_markers=40, rigid_markers=4, deformation_mm=4.0)
+    rng = np.random.default_rng(3)
+    patch = 4 + np.argsort(np.linalg.norm(take.rest[4:] - take.rest[4], axis=1))[:4]
+    assert np.ptp(take.rest[patch], axis=0).max() < 0.5 * np.ptp(take.rest[:4], axis=0).max()
+    lift = 3.0 * np.sin(np.linspace(0.0, 6.0 * np.pi, 600))[:, None] * np.array([0.0, 0.6, 0.8])
+    local = take.local.copy()
+    local[:, patch] = take.rest[patch][None] + lift[:, None]
+    P = np.einsum("tij,tmj->tmi", take.rotations, local) + take.translations[:, None]
+    noise = np.full(40, 0.10)
+    noise[patch] = 0.08
+    P = P + rng.normal(size=P.shape) * noise[None, :, None]
+    out = stabilize_head(P)
+    np.testing.assert_array_equal(out.stable_markers, BAND)
+
+
 def test_automatic_choice_of_more_markers(synthetic_take) -> None:
     take = synthetic_take(n_frames=300, n_markers=30, rigid_markers=6, deformation_mm=4.0)
     out = stabilize_head(take.positions, n_auto=6)

@@ -13,9 +13,10 @@ from tqdm.auto import tqdm
 
 from ..blendshapes.fit_bases_to_markers import fit_bases_to_markers
 from ..errors import FacecapWarning, InputError
+from ..markers.rigid_fit import rigid_fit, trimmed_rigid_fit
 from ..structures import Mesh
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
-from .register_template_to_scan import register_template_to_scan
+from .register_template_to_scan import DEFAULT_REST_WEIGHT, register_template_to_scan
 
 __all__ = ["RegisteredScans", "register_scans", "DEFAULT_MARKER_OFFSET_MM"]
 
@@ -32,9 +33,11 @@ class RegisteredScans:
     template : Mesh
         The template, in its own coordinates and unit (the output topology).
     bases : (K, n, 3) float64 array, mm
-        Blendshape bases in the (stabilised) mocap frame.
+        Blendshape bases in the (stabilised) mocap frame, all in the
+        template's head pose.
     basis_markers : (K, M, 3) float64 array, mm
-        The planned frames' markers: the bases reproduce them.
+        The planned frames' markers, each frame moved rigidly onto its basis:
+        the bases reproduce them.
     output_from_mocap : (4, 4) float64 array
         Rigid transform from the mocap frame to the template's coordinates.
     marker_vertices, marker_weights : (M, 3) int64 / float64 arrays
@@ -74,9 +77,19 @@ def register_scans(
     marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
     refine: bool = False,
     flag_threshold_mm: float = 0.2,
+    rest_weight: float = DEFAULT_REST_WEIGHT,
     progress: bool = True,
 ) -> RegisteredScans:
     """Register a plan's scans (Huang et al. 2011, sections 5, 6.1, 6.2 and 7).
+
+    Each scan: its markers registered onto it (section 5), which puts it in
+    the mocap frame; the template deformed onto it (eq. 7); the scan's pose
+    then replaced by the one that puts its skull-fixed parts on the
+    template's, and the template deformed onto it again, now with a weak pull
+    towards the template where nothing is seen (``rest_weight``). Then the
+    optional fine-scale refinement (6.2), and every basis fitted to its
+    frame's markers (7) after those markers are moved rigidly onto the basis,
+    so the fit changes the basis's shape, not its pose.
 
     Parameters
     ----------
@@ -99,6 +112,9 @@ def register_scans(
         been shown to improve correspondence (see docs/scan_workflow.md).
     flag_threshold_mm : float, default 0.2
         Scans whose mean distance to their surface stays above this are flagged.
+    rest_weight : float, default 3e-4
+        ``w0`` of the second pass of
+        :func:`~facecap.registration.register_template_to_scan.register_template_to_scan`.
     progress : bool, default True
 
     Returns
@@ -168,16 +184,26 @@ def register_scans(
         reg = registrations[i]
         skin = (reg.surface_points - reg.translation) @ reg.rotation  # skin under each marker, mocap frame
         usable = on_template & ~reg.unmatched
-        targets = np.where(usable[:, None], skin, np.nan)
-        result = register_template_to_scan(
-            tmpl_mocap, marker_vertices[on_template], marker_weights[on_template], scans_mocap[i],
-            targets[on_template],
-        )
+        targets = np.where(usable[:, None], skin, np.nan)[on_template]
+        first = register_template_to_scan(tmpl_mocap, marker_vertices[on_template], marker_weights[on_template],
+                                          scans_mocap[i], targets)
+        # The scan's pose came from its own frame's stabilised markers, so it carries that frame's
+        # stabilisation error (tenths of a mm of rigid jitter from a handful of noisy markers), which
+        # would become a rigid error of the basis. It is replaced by the pose that puts the scan's
+        # skull-fixed parts on the template's, found from thousands of registered vertices.
+        pose, stable = trimmed_rigid_fit(first.vertices, tmpl_mocap.vertices, usable=first.matched)
+        scans_mocap[i] = scans_mocap[i].with_vertices(pose.apply(scans_mocap[i].vertices))
+        result = register_template_to_scan(tmpl_mocap, marker_vertices[on_template], marker_weights[on_template],
+                                           scans_mocap[i], pose.apply(targets),
+                                           rest_weight=rest_weight)
         registered[i] = result.vertices
         matched[i] = result.matched
         distances[i] = result.mean_distance_mm
         report["scans"][i]["large_scale_mm"] = result.mean_distance_mm
         report["scans"][i]["matched_fraction"] = float(result.matched.mean())
+        report["scans"][i]["pose_change_mm"] = float(np.mean(np.linalg.norm(pose.apply(first.vertices)
+                                                                            - first.vertices, axis=1)))
+        report["scans"][i]["pose_vertices"] = int(stable.sum())
     timings["large_scale_registration_s"] = time.perf_counter() - t
 
     if refine and K > 1:
@@ -198,13 +224,17 @@ def register_scans(
         report["fine_scale_misalignment"] = {"before": refined.misalignment_before.tolist(),
                                              "after": refined.misalignment_after.tolist()}
 
-    # section 7: bases fitted to their frames' markers (skin under each marker)
+    # section 7: bases fitted to their frames' markers (skin under each marker), after the
+    # markers are moved rigidly onto their basis, so the fit changes the shape, not the pose
     t = time.perf_counter()
     fit_rows = on_template
     normals = np.stack([igl.per_vertex_normals(registered[i], template.faces) for i in range(K)])
     mv, mw = marker_vertices[fit_rows], marker_weights[fit_rows]
     marker_normals = np.einsum("mj,kmjc->kmc", mw, normals[:, mv])
     marker_normals /= np.linalg.norm(marker_normals, axis=2, keepdims=True)
+    virtual = np.einsum("mj,kmjc->kmc", mw, registered[:, mv]) + marker_offset_mm * marker_normals
+    to_basis = rigid_fit(X[:, fit_rows], virtual)
+    X = to_basis.apply(X)
     skin_targets = X[:, fit_rows] - marker_offset_mm * marker_normals
     bases, change = fit_bases_to_markers(registered, template.faces, mv, mw, skin_targets)
     timings["fit_bases_s"] = time.perf_counter() - t
