@@ -21,7 +21,8 @@ def test_demo_writes_the_animation_report_and_pictures(tmp_path, capsys):
     errors = scans["error_after_each_mm"]
     assert all(b <= a + 1e-9 for a, b in zip(errors, errors[1:]))  # Fig. 8: monotone in the number of scans
     assert max(scans["registration_mm"]) < 0.2
-    assert scans["blend"]["mean_mm"] < 0.8  # the blended scans against the generator's ground truth
+    # the blended scans against the generator's ground truth: better than the thin shell on the same take
+    assert scans["blend"]["mean_mm"] < shell["mean_mm"]
     for name in ("frame_comparison.png", "dense_error_over_time.png", "marker_residuals.png",
                  "scan_selection.png", "methods_error_comparison.png", "methods_error_over_time.png"):
         image = imread(out / "pictures" / name)

@@ -43,15 +43,15 @@ def test_plan_register_blend(workflow):
     assert max(report["registration_mm"]) < 0.2
     # every basis in the template's head pose: its rigid offset from the true expression (fitted on
     # the vertices no expression moves) stays small, though each scan came in its own scanner frame
-    # and each frame's marker stabilisation jitters
+    # and each frame's stabilisation jitters (measured 0.10-0.21 mm; 0.14-0.32 with the 4-marker
+    # stabilisation, up to 1.26 with a pose refitted on the "least moved" registered vertices)
     bases = np.load(root / "bases" / "bases.npy")
     output_from_mocap = np.load(root / "bases" / "output_from_mocap.npy")
     true_bases = (case.truth_vertices[frames] - output_from_mocap[:3, 3]) @ output_from_mocap[:3, :3]
     static = np.abs(case.truth_vertices[frames] - case.scan.vertices).max(axis=(0, 2)) < 0.01  # skull-fixed
     to_truth = rigid_fit(bases[:, static], true_bases[:, static])
     pose_error = np.linalg.norm(to_truth.apply(bases) - bases, axis=2).mean(axis=1)
-    # measured: 0.11-1.26 mm, mean 0.54 (before the bases shared the template's pose: 0.11-2.45, mean 1.53)
-    assert pose_error.mean() < 0.8, pose_error
+    assert pose_error.max() < 0.3, pose_error
     assert main(["-q", "blend", "--bases", str(root / "bases"), "--markers", str(files.markers),
                  "--out", str(root / "blend")]) == 0
     V = np.load(root / "blend" / "vertices.npy", mmap_mode="r")

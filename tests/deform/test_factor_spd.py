@@ -1,3 +1,5 @@
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -37,3 +39,31 @@ def test_singular_matrix_is_an_error_not_garbage():
     A = sp.csr_matrix(np.array([[1.0, 1.0], [1.0, 1.0]]))
     with pytest.raises(SolverError):
         SpdFactor(A, backend="scipy").solve(np.ones(2))
+
+
+def _resident_bytes() -> int:
+    with open("/proc/self/statm") as f:
+        return int(f.read().split()[1]) * 4096
+
+
+@pytest.mark.skipif(not Path("/proc/self/statm").exists(), reason="needs Linux /proc to read resident memory")
+@pytest.mark.parametrize("backend", available_backends())
+def test_free_gives_the_memory_back(backend):
+    # A 40k-vertex grid Laplacian: before free() released MKL's whole PARDISO handle, each
+    # factor-and-free cycle kept ~18 MB here (216 MB over 12; 180 MB per 78k-vertex registration,
+    # 7 GB for 40 of them); now the resident size stays flat, up to allocator noise.
+    grid = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(200, 200))
+    A = (sp.kronsum(grid, grid) + 1e-3 * sp.eye(40_000)).tocsr()
+    b = np.ones((40_000, 3))
+    for _ in range(2):  # warm up allocator pools and MKL's one-time buffers
+        f = SpdFactor(A, backend=backend)
+        f.solve(b)
+        f.free()
+    before = _resident_bytes()
+    for _ in range(12):
+        f = SpdFactor(A, backend=backend)
+        x = f.solve(b)
+        f.free()
+    growth_mb = (_resident_bytes() - before) / 1e6
+    np.testing.assert_allclose(A @ x, b, atol=1e-6)
+    assert growth_mb < 80, f"{growth_mb:.0f} MB kept over 12 factor/free cycles"

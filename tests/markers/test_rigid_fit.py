@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError
-from facecap.markers import RigidTransform, rigid_fit, trimmed_rigid_fit
+from facecap.markers import RigidTransform, rigid_fit
 
 
 def _random_motion(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -126,39 +126,3 @@ def test_rejects_bad_input() -> None:
         rigid_fit(np.zeros((2, 5, 3)), np.zeros((3, 5, 3)))
     with pytest.raises(InputError, match="infinite"):
         rigid_fit(np.full((5, 3), np.inf), pts)
-
-
-def test_trimmed_fit_recovers_the_motion_of_the_part_that_stayed_rigid() -> None:
-    # a head-sized cloud: 60 % of it moves on its own by up to 5 mm (an expression), and the
-    # whole is moved by a known rigid motion; the trimmed fit finds that motion exactly
-    rng = np.random.default_rng(4)
-    P = rng.normal(size=(3000, 3)) * [60.0, 80.0, 50.0]
-    expressive = P[:, 1] < np.quantile(P[:, 1], 0.6)
-    local = P.copy()
-    local[expressive] += rng.uniform(0.5, 5.0, (expressive.sum(), 1)) * rng.normal(size=(expressive.sum(), 3))
-    R = Rotation.from_rotvec([0.02, -0.05, 0.03]).as_matrix()
-    t = np.array([1.0, -2.0, 0.5])
-    moved = local @ R.T + t
-    fit, kept = trimmed_rigid_fit(P, moved, keep_fraction=0.3)
-    np.testing.assert_allclose(fit.rotation, R, atol=1e-12)
-    np.testing.assert_allclose(fit.translation, t, atol=1e-9)
-    assert not (kept & expressive).any() and kept.sum() == pytest.approx(0.3 * P.shape[0], abs=2)
-    plain = rigid_fit(P, moved)
-    assert np.abs(plain.translation - t).max() > 0.05  # what the untrimmed fit gets wrong
-
-
-def test_trimmed_fit_uses_only_usable_points_and_rejects_bad_input() -> None:
-    rng = np.random.default_rng(5)
-    P = rng.normal(size=(100, 3)) * 50.0
-    moved = P + [3.0, 0.0, 0.0]
-    moved[:50] += 40.0  # unusable points, far off
-    usable = np.arange(100) >= 50
-    fit, kept = trimmed_rigid_fit(P, moved, usable=usable, keep_fraction=1.0)
-    np.testing.assert_allclose(fit.translation, [3.0, 0.0, 0.0], atol=1e-9)
-    assert not kept[:50].any()
-    with pytest.raises(InputError, match="keep_fraction"):
-        trimmed_rigid_fit(P, moved, keep_fraction=0.0)
-    with pytest.raises(InputError, match="too few"):
-        trimmed_rigid_fit(P, moved, usable=np.arange(100) < 4, keep_fraction=0.5)
-    with pytest.raises(InputError, match="same shape"):
-        trimmed_rigid_fit(P, moved[:50])

@@ -2,6 +2,7 @@ import numpy as np
 import pytest
 
 from facecap.errors import InputError
+from facecap.registration.register_scans import DEFAULT_REST_WEIGHT
 from facecap.registration.register_template_to_scan import register_template_to_scan
 from facecap.synth import generate_performance
 from facecap.synth.scan_expression import scan_expression
@@ -48,15 +49,16 @@ def test_too_few_visible_markers(setup):
 
 def test_rest_weight_keeps_what_the_scan_does_not_see_near_the_truth(setup):
     # Without it the Laplacian term extrapolates the face's displacement linearly into the neck,
-    # ears and the inside of the mouth, which the scanner never sees; the generator's truth
-    # barely moves there.
+    # ears and the inside of the mouth, which the scanner never sees; there the truth moves less
+    # than that extrapolation (measured: unseen error 0.64 mm free, 0.41 held, 0.57 at 1e-3).
     case, truth, scan, idx, w = setup
     free = register_template_to_scan(case.scan, idx, w, scan, truth[idx[:, 0]])
-    held = register_template_to_scan(case.scan, idx, w, scan, truth[idx[:, 0]], rest_weight=3e-4)
+    held = register_template_to_scan(case.scan, idx, w, scan, truth[idx[:, 0]], rest_weight=DEFAULT_REST_WEIGHT)
     unseen = ~free.matched
     error_free = np.linalg.norm(free.vertices - truth, axis=1)
     error_held = np.linalg.norm(held.vertices - truth, axis=1)
     assert error_held[unseen].mean() < 0.8 * error_free[unseen].mean()
-    assert held.mean_distance_mm < 0.2  # still on the scan where it sees it
+    assert error_held[~unseen].mean() <= error_free[~unseen].mean()  # and no worse where it sees
+    assert held.mean_distance_mm <= free.mean_distance_mm + 0.005  # still on the scan
     with pytest.raises(InputError, match="non-negative"):
         register_template_to_scan(case.scan, idx, w, scan, truth[idx[:, 0]], rest_weight=-1.0)

@@ -59,7 +59,10 @@ def write_blended_performance(
     batch_frames: int = 64,
     progress: bool = True,
 ) -> Path:
-    """Stream ``m_t = sum_i w_t,i d_i`` to an output folder like ``facecap animate`` writes.
+    """Stream ``m_t = c + sum_i w_t,i (d_i - c)`` to an output folder like ``facecap animate`` writes.
+
+    ``c`` is the bases' centroid (see ``output_from_bases``); with weights
+    summing to one this is eq. 12's ``sum_i w_t,i d_i``.
 
     Parameters
     ----------
@@ -72,9 +75,10 @@ def write_blended_performance(
     rate : float
         Frame rate, Hz.
     output_from_bases : (4, 4) float array, optional
-        Rigid transform applied to every blended frame (to put the result in
-        the template's own coordinates); applied after blending because the
-        weights need not sum to one.
+        Rigid transform from the bases' frame to the output's (the template's
+        own coordinates). The bases are moved by it and blended about their
+        centroid, so weights that do not sum to one scale the face about its
+        middle, not about either frame's origin.
     exports : iterable of {'obj', 'ply', 'usd'}
     metadata : dict, optional
         Added to ``performance.json``.
@@ -95,16 +99,22 @@ def write_blended_performance(
         raise InputError(f"bases {Bs.shape} and weights {W.shape} do not match a template of {template.n_vertices} vertices")
     K, n, _ = Bs.shape
     T = W.shape[0]
-    if output_from_bases is not None:  # rotate the bases once; the translation scales with sum(w)
-        R = np.asarray(output_from_bases, dtype=np.float32)
-        Bs = Bs @ R[:3, :3].T
-        translation = R[:3, 3]
-    flat = Bs.reshape(K, n * 3)
+    # The weights need not sum to one, and a sum of 1 + e scales the blend about the coordinate
+    # origin: e times 1.5 m of false translation in a mocap frame (NNLS spends e on each frame's
+    # stabilisation error). So the bases are moved into the output frame and blended about their
+    # own centroid, where 1 + e scales only the face's shape about its middle.
+    B64 = np.asarray(bases, dtype=np.float64)
+    if output_from_bases is not None:
+        pose = np.asarray(output_from_bases, dtype=np.float64)
+        B64 = B64 @ pose[:3, :3].T + pose[:3, 3]
+    centre64 = B64.reshape(-1, 3).mean(axis=0)
+    flat = (B64 - centre64).astype(np.float32).reshape(K, n * 3)  # float32 only once centred
+    centre = centre64.astype(np.float32)
+    del B64
 
     def compute(start: int, stop: int, out: np.ndarray) -> None:
         np.matmul(W[start:stop], flat, out=out.reshape(stop - start, n * 3))
-        if output_from_bases is not None:
-            out += W[start:stop].sum(axis=1)[:, None, None] * translation
+        out += centre
 
     with PerformanceWriter(out_dir, mesh=template, rate=rate, n_frames=T, exports=exports) as writer:
         writer.stream(compute, batch_frames=batch_frames, progress=progress, desc="blend")

@@ -143,5 +143,5 @@ class SpdFactor:
         """Release the factor's memory now rather than at garbage collection."""
         if self.backend == "pardiso" and self._impl is not None:
             solver, _ = self._impl
-            solver.free_memory(everything=False)
+            solver.free_memory(everything=True)
         self._impl = None

@@ -10,7 +10,7 @@ from __future__ import annotations
 from .bilateral_filter import bilateral_filter
 from .condition_take import ConditionedTake, auto_stabilize, condition_take
 from .fill_gaps import FilledMarkers, fill_gaps
-from .rigid_fit import RigidTransform, rigid_fit, trimmed_rigid_fit
+from .rigid_fit import RigidTransform, rigid_fit
 from .stabilize_head import Stabilization, stabilize_head
 
 __all__ = [
@@ -24,5 +24,4 @@ __all__ = [
     "fill_gaps",
     "rigid_fit",
     "stabilize_head",
-    "trimmed_rigid_fit",
 ]

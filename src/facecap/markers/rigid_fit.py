@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import InputError
 from ..typing import FloatArray
 
-__all__ = ["RigidTransform", "rigid_fit", "trimmed_rigid_fit"]
+__all__ = ["RigidTransform", "rigid_fit"]
 
 _MIN_POINTS = 3
 
@@ -186,82 +186,3 @@ def rigid_fit(
     t = np.where(enough[..., None], t, np.nan)
     rms = np.where(enough, rms, np.nan)
     return RigidTransform(rotation=R, translation=t, rms=rms)
-
-
-def trimmed_rigid_fit(
-    source: FloatArray,
-    target: FloatArray,
-    *,
-    usable: Any = None,
-    keep_fraction: float = 0.3,
-    iterations: int = 6,
-) -> tuple[RigidTransform, np.ndarray]:
-    """Rigid motion of ``source`` onto ``target`` over the points that moved together (trimmed least squares).
-
-    Fits :func:`rigid_fit` on every usable point, then ``iterations`` times
-    refits on the ``keep_fraction`` of them that lie closest to ``target``
-    after the previous fit. Points that moved on their own (a face's jaw,
-    lips and brows between two expressions) drop out, and the largest part
-    that moved rigidly (the skull-fixed skin: upper forehead, nose bridge,
-    temples, ears) decides the motion. With thousands of points this pins a
-    pose far better than a handful of noisy markers.
-
-    Parameters
-    ----------
-    source, target : (n, 3) float64 arrays, mm
-        Corresponding points (the same mesh vertex in two shapes).
-    usable : (n,) bool array, optional
-        Points allowed in the fit (e.g. vertices a scan saw). Default: all.
-    keep_fraction : float, default 0.3
-        Share of the usable points kept in each refit, in (0, 1]. It should
-        not exceed the share that truly moved rigidly.
-    iterations : int, default 6
-        Refits after the first (the kept set settles in 3-4 on faces).
-
-    Returns
-    -------
-    RigidTransform
-        The motion, with ``rms`` over the kept points.
-    kept : (n,) bool array
-        The points of the last fit.
-
-    Raises
-    ------
-    InputError
-        On shapes that do not match, fewer than 3 usable points, or options
-        out of range.
-
-    Examples
-    --------
-    Half of a point cloud moves away; a rigid motion of the whole is still found exactly:
-
-    >>> import numpy as np
-    >>> rng = np.random.default_rng(0)
-    >>> P = rng.normal(size=(200, 3)) * 50
-    >>> moved = P + [1.0, 2.0, 3.0]
-    >>> moved[:100] += rng.normal(size=(100, 3)) * 5
-    >>> fit, kept = trimmed_rigid_fit(P, moved)
-    >>> bool(np.allclose(fit.translation, [1, 2, 3])), bool(kept[100:].sum() == kept.sum())
-    (True, True)
-    """
-    S = _as_point_batch(source, name="source")
-    Y = _as_point_batch(target, name="target")
-    if S.ndim != 2 or S.shape != Y.shape:
-        raise InputError(f"source, target: expected two (n, 3) arrays of the same shape, got {S.shape}, {Y.shape}")
-    ok = np.ones(S.shape[0], dtype=bool) if usable is None else np.asarray(usable, dtype=bool)
-    if ok.shape != (S.shape[0],):
-        raise InputError(f"usable: expected ({S.shape[0]},) booleans, got shape {ok.shape}")
-    ok = ok & np.isfinite(S).all(axis=1) & np.isfinite(Y).all(axis=1)
-    if not 0.0 < float(keep_fraction) <= 1.0:
-        raise InputError(f"keep_fraction: expected a fraction in (0, 1], got {keep_fraction!r}")
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
-        raise InputError(f"iterations: expected an integer >= 0, got {iterations!r}")
-    if np.count_nonzero(ok) < _MIN_POINTS or np.count_nonzero(ok) * keep_fraction < _MIN_POINTS:
-        raise InputError(f"trimmed_rigid_fit: {int(np.count_nonzero(ok))} usable points are too few to fit")
-    kept = ok
-    fit = rigid_fit(S[kept], Y[kept])
-    for _ in range(int(iterations)):
-        residual = np.linalg.norm(fit.apply(S) - Y, axis=1)
-        kept = ok & (residual <= np.quantile(residual[ok], keep_fraction))
-        fit = rigid_fit(S[kept], Y[kept])
-    return fit, kept

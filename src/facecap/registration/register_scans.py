@@ -13,15 +13,18 @@ from tqdm.auto import tqdm
 
 from ..blendshapes.fit_bases_to_markers import fit_bases_to_markers
 from ..errors import FacecapWarning, InputError
-from ..markers.rigid_fit import rigid_fit, trimmed_rigid_fit
+from ..markers.rigid_fit import rigid_fit
 from ..structures import Mesh
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
-from .register_template_to_scan import DEFAULT_REST_WEIGHT, register_template_to_scan
+from .register_template_to_scan import register_template_to_scan
 
-__all__ = ["RegisteredScans", "register_scans", "DEFAULT_MARKER_OFFSET_MM"]
+__all__ = ["RegisteredScans", "register_scans", "DEFAULT_MARKER_OFFSET_MM", "DEFAULT_REST_WEIGHT"]
 
 DEFAULT_MARKER_OFFSET_MM = 1.5
 """Height of a marker's centre above the skin: half a 3 mm hemispherical marker."""
+
+DEFAULT_REST_WEIGHT = 3e-4
+"""``w0`` of the template registration (swept in docs/scan_workflow.md)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,8 +36,7 @@ class RegisteredScans:
     template : Mesh
         The template, in its own coordinates and unit (the output topology).
     bases : (K, n, 3) float64 array, mm
-        Blendshape bases in the (stabilised) mocap frame, all in the
-        template's head pose.
+        Blendshape bases in the (stabilised) mocap frame.
     basis_markers : (K, M, 3) float64 array, mm
         The planned frames' markers, each frame moved rigidly onto its basis:
         the bases reproduce them.
@@ -83,13 +85,12 @@ def register_scans(
     """Register a plan's scans (Huang et al. 2011, sections 5, 6.1, 6.2 and 7).
 
     Each scan: its markers registered onto it (section 5), which puts it in
-    the mocap frame; the template deformed onto it (eq. 7); the scan's pose
-    then replaced by the one that puts its skull-fixed parts on the
-    template's, and the template deformed onto it again, now with a weak pull
-    towards the template where nothing is seen (``rest_weight``). Then the
-    optional fine-scale refinement (6.2), and every basis fitted to its
-    frame's markers (7) after those markers are moved rigidly onto the basis,
-    so the fit changes the basis's shape, not its pose.
+    the stabilised mocap frame; the template deformed onto it (eq. 7, with a
+    weak pull towards the template's own position, ``rest_weight``, for
+    what neither scan nor markers constrain); the optional fine-scale
+    refinement (6.2); and every basis fitted to its frame's markers (7)
+    after those markers are moved rigidly onto the basis, so the fit changes
+    the basis's shape, not its pose.
 
     Parameters
     ----------
@@ -112,8 +113,8 @@ def register_scans(
         been shown to improve correspondence (see docs/scan_workflow.md).
     flag_threshold_mm : float, default 0.2
         Scans whose mean distance to their surface stays above this are flagged.
-    rest_weight : float, default 3e-4
-        ``w0`` of the second pass of
+    rest_weight : float, default 3e-4 (:data:`DEFAULT_REST_WEIGHT`)
+        ``w0`` of
         :func:`~facecap.registration.register_template_to_scan.register_template_to_scan`.
     progress : bool, default True
 
@@ -138,8 +139,7 @@ def register_scans(
     t = time.perf_counter()
     registrations = []
     for i, scan in enumerate(tqdm(scans, desc="markers -> scans", disable=not progress, leave=False)):
-        # the markers cover less of the head than a scan: only a units mix-up (x10, x25.4) is an error
-        reg = register_markers_to_scan(X[i], scan, subspace=X, marker_offset_mm=marker_offset_mm, size_tolerance=1.0)
+        reg = register_markers_to_scan(X[i], scan, subspace=X, marker_offset_mm=marker_offset_mm)
         registrations.append(reg)
         matched = int((~reg.unmatched).sum())
         entry = {
@@ -167,7 +167,7 @@ def register_scans(
         template = scans[0]
     else:
         tmpl_reg = register_markers_to_scan(np.asarray(template_markers, dtype=np.float64), template, subspace=X,
-                                            marker_offset_mm=marker_offset_mm, size_tolerance=1.0)
+                                            marker_offset_mm=marker_offset_mm)
         tmpl_mocap = _to_mocap(template, tmpl_reg)
     output_from_mocap = np.eye(4)
     output_from_mocap[:3, :3], output_from_mocap[:3, 3] = tmpl_reg.rotation, tmpl_reg.translation
@@ -185,25 +185,13 @@ def register_scans(
         skin = (reg.surface_points - reg.translation) @ reg.rotation  # skin under each marker, mocap frame
         usable = on_template & ~reg.unmatched
         targets = np.where(usable[:, None], skin, np.nan)[on_template]
-        first = register_template_to_scan(tmpl_mocap, marker_vertices[on_template], marker_weights[on_template],
-                                          scans_mocap[i], targets)
-        # The scan's pose came from its own frame's stabilised markers, so it carries that frame's
-        # stabilisation error (tenths of a mm of rigid jitter from a handful of noisy markers), which
-        # would become a rigid error of the basis. It is replaced by the pose that puts the scan's
-        # skull-fixed parts on the template's, found from thousands of registered vertices.
-        pose, stable = trimmed_rigid_fit(first.vertices, tmpl_mocap.vertices, usable=first.matched)
-        scans_mocap[i] = scans_mocap[i].with_vertices(pose.apply(scans_mocap[i].vertices))
         result = register_template_to_scan(tmpl_mocap, marker_vertices[on_template], marker_weights[on_template],
-                                           scans_mocap[i], pose.apply(targets),
-                                           rest_weight=rest_weight)
+                                           scans_mocap[i], targets, rest_weight=rest_weight)
         registered[i] = result.vertices
         matched[i] = result.matched
         distances[i] = result.mean_distance_mm
         report["scans"][i]["large_scale_mm"] = result.mean_distance_mm
         report["scans"][i]["matched_fraction"] = float(result.matched.mean())
-        report["scans"][i]["pose_change_mm"] = float(np.mean(np.linalg.norm(pose.apply(first.vertices)
-                                                                            - first.vertices, axis=1)))
-        report["scans"][i]["pose_vertices"] = int(stable.sum())
     timings["large_scale_registration_s"] = time.perf_counter() - t
 
     if refine and K > 1:
@@ -233,7 +221,8 @@ def register_scans(
     marker_normals = np.einsum("mj,kmjc->kmc", mw, normals[:, mv])
     marker_normals /= np.linalg.norm(marker_normals, axis=2, keepdims=True)
     virtual = np.einsum("mj,kmjc->kmc", mw, registered[:, mv]) + marker_offset_mm * marker_normals
-    to_basis = rigid_fit(X[:, fit_rows], virtual)
+    landed = np.stack([~r.unmatched[fit_rows] for r in registrations]).astype(np.float64)
+    to_basis = rigid_fit(X[:, fit_rows], virtual, weights=landed)  # off-scan markers' virtual spots are guesses
     X = to_basis.apply(X)
     skin_targets = X[:, fit_rows] - marker_offset_mm * marker_normals
     bases, change = fit_bases_to_markers(registered, template.faces, mv, mw, skin_targets)

@@ -16,18 +16,10 @@ from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 
-__all__ = ["register_template_to_scan", "TemplateRegistration", "DEFAULT_CLOSEST_POINT_WEIGHTS",
-           "DEFAULT_REST_WEIGHT"]
+__all__ = ["register_template_to_scan", "TemplateRegistration", "DEFAULT_CLOSEST_POINT_WEIGHTS"]
 
 DEFAULT_CLOSEST_POINT_WEIGHTS = (0.1, 0.5, 2.0)
 """The w3 schedule of the paper: the closest-point term grows over three iterations."""
-
-DEFAULT_REST_WEIGHT = 3e-4
-"""``w0`` of :func:`register_scans`'s second pass: see ``rest_weight``.
-
-Measured on a generated 600-frame case (24 scans, 9.4k-vertex template, 56 % of it
-seen by the scans): blend error 0.249 / 0.221 / 0.212 / 0.252 / 0.345 mm for
-w0 = 1e-5 / 1e-4 / 3e-4 / 2e-3 / 1e-2 (0.264 mm without the term)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -118,9 +110,10 @@ def register_template_to_scan(
         ``L d - L s`` term alone extrapolates the face's displacement
         linearly, so those parts drift by tenths of a mm; ``w0`` makes the
         displacement fade out instead, over about ``(w2 / w0) ** 0.25``
-        edges (7 edges at 3e-4). Only meaningful once the scan shares the
-        template's pose (:func:`~facecap.registration.register_scans.register_scans`
-        uses it in its second pass, with :data:`DEFAULT_REST_WEIGHT`).
+        edges (7 edges at 3e-4). Needs the scan in the template's head pose
+        (to within stabilisation noise);
+        :func:`~facecap.registration.register_scans.register_scans` uses
+        :data:`~facecap.registration.register_scans.DEFAULT_REST_WEIGHT`.
     backend : {'auto', 'pardiso', 'scipy'}
 
     Returns
