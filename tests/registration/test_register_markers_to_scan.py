@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+from facecap.blendshapes.select_scan_frames import select_scan_frames
 from facecap.errors import InputError, MarkerError, MeshError
 from facecap.registration import MarkerRegistration, register_markers_to_scan
 from facecap.structures import Mesh
-from facecap.synth.generate_performance import SyntheticCase, generate_performance
+from facecap.synth.generate_performance import SyntheticCase, generate_performance, vertex_normals_at
 from facecap.synth.scan_expression import ScannedExpression, scan_expression
 
 OFFSET = 1.5
@@ -129,6 +130,43 @@ def test_subspace_deformation_registers_a_different_expression(case) -> None:
     error = np.linalg.norm(joint.markers - expected, axis=1)[~joint.unmatched]
     assert np.median(error) < 0.3 and error.max() < 0.8
     assert joint.weights.shape == (selected.size,) and abs(joint.weights[3]) < 1e-9  # x_60 - x_60 = 0: no pull
+
+
+def test_skin_points_are_under_the_markers_along_the_smooth_normal(case) -> None:
+    """A marker 1.5 mm above a coarse face's crease: its closest point lands aside, its foot does not."""
+    V, F, mv = case.scan.vertices, case.scan.faces, case.marker_vertices
+    centres = V[mv] + OFFSET * vertex_normals_at(V, F, mv)  # the generator's model: along the vertex normal
+    _, _, closest = igl.point_mesh_squared_distance(centres, V, F)
+    assert np.linalg.norm(closest - V[mv], axis=1).max() > 0.3  # the case is not trivial
+    reg = register_markers_to_scan(centres, case.scan, init=np.eye(4), marker_offset_mm=OFFSET)
+    assert not reg.unmatched.any()
+    assert np.linalg.norm(reg.surface_points - V[mv], axis=1).max() < 0.1
+    np.testing.assert_allclose(reg.distances, OFFSET, atol=0.05)
+
+
+def test_a_deformation_weight_stops_markers_sliding_along_the_skin() -> None:
+    """A near-neutral frame on the neutral face, with 15 extreme frames as the subspace.
+
+    The point-to-plane residuals do not see a marker slide along the skin. Free (the paper's
+    eq. 6), the subspace slides one marker's skin point 0.84 mm on this take to fit noise
+    elsewhere; the displacement term (as :func:`register_scans` uses for its template, whose
+    expression is the frame's) keeps every skin point within the noise.
+    """
+    take = generate_performance(n_frames=600, seed=0, n_markers=90, gap_fraction=0.0, head_rotation_deg=0.0,
+                                head_translation_mm=0.0)
+    V, mv = take.scan.vertices, take.marker_vertices
+    markers = take.markers.positions[:, : mv.size]
+    selected = select_scan_frames(markers, tolerance=0.0, max_frames=15).frames
+    motion = np.linalg.norm(take.truth_vertices[:, mv] - V[mv], axis=2).mean(axis=1)
+    frame = int(np.argsort(motion)[motion.size // 10])  # a tenth of the take moves less
+    common = dict(subspace=markers[selected], init=np.linalg.inv(take.mocap_from_scan), marker_offset_mm=OFFSET)
+    free = register_markers_to_scan(markers[frame], take.scan, **common)
+    kept = register_markers_to_scan(markers[frame], take.scan, deformation_weight=0.01, **common)
+
+    def worst_skin_error(reg: MarkerRegistration) -> float:
+        return float(np.linalg.norm(reg.surface_points - V[mv], axis=1)[~reg.unmatched].max())
+
+    assert worst_skin_error(kept) < 0.4 < 0.6 < worst_skin_error(free)
 
 
 def test_flipped_normals_are_detected_and_still_register(case, same_expression) -> None:

@@ -28,13 +28,15 @@ class MarkerRegistration(NamedTuple):
         Marker centres in scan coordinates after the rigid motion and the
         subspace deformation; NaN for markers missing from the frame.
     surface_points : (M, 3) float64 array, mm
-        Closest point of each marker on the scan: the skin under it.
+        The skin under each marker: the scan point whose smooth (interpolated
+        vertex) normal, ``marker_offset_mm`` long, reaches the marker centre;
+        the closest point when the offset is 0.
     face_indices : (M,) int64 array
         Scan triangle holding each surface point; -1 for missing markers.
     barycentric : (M, 3) float64 array
         Barycentric coordinates of the surface point in that triangle.
     distances : (M,) float64 array, mm
-        Distance from each marker centre to the scan surface.
+        Distance from each marker centre to its surface point.
     unmatched : (M,) bool array
         Markers that cannot be matched: missing from the frame, over a hole
         or past the scan's rim (closest point on a boundary), or off the
@@ -96,6 +98,7 @@ def register_markers_to_scan(
     max_iterations: int = 50,
     nonrigid_iterations: int = 30,
     regularization: float = 1e-3,
+    deformation_weight: float = 0.0,
     max_residual_mm: float = 2.0,
     tolerance_mm: float = 1e-4,
     refine_rigid: bool = True,
@@ -145,6 +148,15 @@ def register_markers_to_scan(
     regularization : float, default 1e-3
         Tikhonov weight on the subspace coefficients, relative to the mean
         squared column norm of the least-squares matrix.
+    deformation_weight : float, default 0.0
+        Weight of the markers' displacement ``|x(c) - x_i|^2`` against the
+        squared point-to-plane residuals. The residuals do not see a marker
+        slide along the skin, so a free subspace can slide some markers to
+        fit the noise of others. 0 (the paper) leaves the deformation free, as
+        a scan of a re-performed expression needs; when the scan shows the
+        frame's own expression (a template and the markers of its frame), a
+        positive weight keeps the markers where the mocap saw them (0.01: a
+        1 mm displacement costs as much as a 0.1 mm residual).
     max_residual_mm : float, default 2.0
         A marker whose distance to the scan differs from the offset by more
         than this, after registration, is unmatched.
@@ -193,9 +205,9 @@ def register_markers_to_scan(
     ``p_m`` and normal ``n_m`` of every inlier marker and solves the linear
     least-squares problem
 
-    ``min_c sum_m (n_m . (R x_m(c) + t - p_m) - offset)^2 + lambda |c|^2``
+    ``min_c sum_m (n_m . (R x_m(c) + t - p_m) - offset)^2 + lambda |c|^2 + mu sum_m |x_m(c) - x_m|^2``
 
-    (``scipy.linalg.lstsq`` on the stacked system), halving a step that
+    (``mu``: ``deformation_weight``; ``scipy.linalg.lstsq`` on the stacked system), halving a step that
     raises the energy. The joint refinement adds a small rotation about the
     inliers' centroid and a translation to the same linearised system.
     Pairs whose closest point is on the scan's boundary, or whose residual
@@ -278,7 +290,7 @@ def register_markers_to_scan(
     D = np.zeros((Xs.shape[0], 3, 0)) if S is None else np.moveaxis(S[:, seen] - Xs[None], 0, -1)
     fit_options = dict(
         surface=surface, target_offset=sign * offset, trim=float(trim), max_residual_mm=max_residual_mm,
-        regularization=regularization, iterations=int(nonrigid_iterations), tolerance_mm=tolerance_mm,
+        regularization=regularization, deformation_weight=deformation_weight, iterations=int(nonrigid_iterations), tolerance_mm=tolerance_mm,
     )
     if S is not None and nonrigid_iterations > 0:
         R, t, c = _subspace_icp(Xs, D, R, t, c, joint=False, **fit_options)  # eq. (6), T fixed
@@ -287,8 +299,7 @@ def register_markers_to_scan(
 
     markers = np.full((M, 3), np.nan)
     markers[seen] = (Xs + D @ c) @ R.T + t
-    sq, n, C, on_rim = surface.closest(markers[seen])
-    _, I, _ = surface.tree.squared_distance(V, F, markers[seen])
+    C, n, I, on_rim = _skin_under(markers[seen], surface, sign * offset)
     residual = np.einsum("md,md->m", markers[seen] - C, n) - sign * offset
     surface_points = np.full((M, 3), np.nan)
     surface_points[seen] = C
@@ -298,7 +309,7 @@ def register_markers_to_scan(
     corners = F[I]
     barycentric[seen] = igl.barycentric_coordinates(C, V[corners[:, 0]], V[corners[:, 1]], V[corners[:, 2]])
     distances = np.full(M, np.nan)
-    distances[seen] = np.sqrt(sq)
+    distances[seen] = np.linalg.norm(markers[seen] - C, axis=1)
     unmatched = np.ones(M, dtype=bool)
     unmatched[seen] = on_rim | (np.abs(residual) > max_residual_mm)
     good = ~unmatched[seen]
@@ -319,6 +330,31 @@ def register_markers_to_scan(
     )
 
 
+def _skin_under(
+    Y: FloatArray, surface: _Surface, offset: float, *, iterations: int = 4
+) -> tuple[FloatArray, FloatArray, IntArray, BoolArray]:
+    """The skin point under each marker centre: where the surface's smooth normal, ``offset`` long, reaches it.
+
+    A marker sits ``offset`` above the skin along the skin's normal, and a real skin's normal is
+    smooth; the closest point of a faceted scan is not that point wherever the triangles turn (an
+    eyelid crease, the nostrils): there it lands up to half a millimetre aside. Starting from the
+    closest point, each step projects ``Y - offset n`` onto the surface, with ``n`` the mean of the
+    last two interpolated normals (the plain fixed-point step can swing between two faces of a crease).
+
+    Returns the points (k, 3), their interpolated unit normals, triangle indices and rim flags.
+    """
+    query = Y
+    _, n, C, on_rim = surface.closest(query)
+    direction = n
+    for _ in range(iterations if offset != 0.0 else 0):
+        query = np.where(np.isfinite(direction), Y - offset * direction, query)
+        _, n, C, on_rim = surface.closest(query)
+        mean = np.where(np.isfinite(n), np.where(np.isfinite(direction), direction + n, n), direction)
+        direction = mean / np.linalg.norm(mean, axis=1, keepdims=True)
+    _, I, _ = surface.tree.squared_distance(surface.V, surface.F, query)
+    return C, n, I, on_rim
+
+
 def _subspace_icp(
     Xs: FloatArray,
     D: FloatArray,
@@ -332,6 +368,7 @@ def _subspace_icp(
     trim: float,
     max_residual_mm: float,
     regularization: float,
+    deformation_weight: float,
     iterations: int,
     tolerance_mm: float,
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -352,7 +389,7 @@ def _subspace_icp(
         inl = _inlier_mask(residual, ~on_rim & (np.abs(residual) <= max_residual_mm), trim)
         if inl.sum() < 3 + (6 if joint else 0):
             break
-        energy = float(np.mean(residual[inl] ** 2))
+        energy = float(np.sum(residual[inl] ** 2) + deformation_weight * np.sum((D @ c) ** 2)) / inl.sum()
         if energy > best:
             w, y0, tau, dc = step
             step = (0.5 * w, y0, 0.5 * tau, 0.5 * dc)
@@ -367,8 +404,13 @@ def _subspace_icp(
                 J = Jc
             ridge = np.zeros((K, J.shape[1]))
             ridge[:, J.shape[1] - K :] = np.sqrt(lam) * np.eye(K)
-            A = np.concatenate([J, ridge])
-            b = np.concatenate([-residual[inl], -np.sqrt(lam) * c])
+            # the markers' own displacement, 3 rows each: the normal residuals leave a slide along
+            # the surface free, and the subspace uses that freedom to fit noise elsewhere
+            RD = np.einsum("ij,mjk->mik", R, D).reshape(-1, K)
+            stiff = np.zeros((RD.shape[0], J.shape[1]))
+            stiff[:, J.shape[1] - K :] = np.sqrt(deformation_weight) * RD
+            A = np.concatenate([J, ridge, stiff])
+            b = np.concatenate([-residual[inl], -np.sqrt(lam) * c, -np.sqrt(deformation_weight) * (RD @ c)])
             x = lstsq(A, b)[0]
             if joint:
                 step = (x[:3], y0, x[3:6], x[6:])
