@@ -1,9 +1,12 @@
+import igl
 import numpy as np
 import pytest
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components, dijkstra
 
 from facecap.errors import InputError
 from facecap.registration.register_scans import DEFAULT_REST_WEIGHT
-from facecap.registration.register_template_to_scan import register_template_to_scan
+from facecap.registration.register_template_to_scan import MAX_NORMAL_ANGLE_DEG, register_template_to_scan
 from facecap.synth import generate_performance
 from facecap.synth.scan_expression import scan_expression
 
@@ -62,3 +65,36 @@ def test_rest_weight_keeps_what_the_scan_does_not_see_near_the_truth(setup):
     assert held.mean_distance_mm <= free.mean_distance_mm + 0.005  # still on the scan
     with pytest.raises(InputError, match="non-negative"):
         register_template_to_scan(case.scan, idx, w, scan, truth[idx[:, 0]], rest_weight=-1.0)
+
+
+def _inner_lips(V: np.ndarray, F: np.ndarray, rings: int) -> np.ndarray:
+    """Vertices within ``rings`` edges of the mouth opening (the front boundary loop lowest on the face)."""
+    edges = igl.boundary_facets(F)[0]
+    graph = sp.coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(len(V),) * 2)
+    _, loop = connected_components(graph, directed=False)
+    on_loop = np.unique(edges)
+    loops = [on_loop[loop[on_loop] == k] for k in np.unique(loop[on_loop])]
+    front = [vs for vs in loops if V[vs, 2].mean() > 50.0]  # the neck's opening is at the back
+    mouth = min(front, key=lambda vs: V[vs, 1].mean())  # below the eyes
+    hops = dijkstra(igl.adjacency_matrix(F), indices=mouth, min_only=True, unweighted=True)
+    return np.flatnonzero(hops <= rings)
+
+
+def test_inner_lips_are_not_pulled_onto_the_outer_lips(setup):
+    """The inner lips face into the mouth and no scan sees them. At the loose limit of 60 degrees
+    the closest points pull the first rings of them onto the lips' visible side."""
+    case = setup[0]
+    motion = np.abs(case.truth_vertices - case.truth_vertices[0]).mean(axis=(1, 2))
+    frame = int(np.argsort(motion)[motion.size // 2])  # an everyday expression, mouth nearly closed
+    truth = case.truth_vertices[frame].astype(np.float64)
+    scan = scan_expression(truth, case.scan.faces, seed=1, target_vertices=15000, scanner_from_face=np.eye(4)).mesh
+    idx, w = setup[3], setup[4]
+    lips = _inner_lips(case.scan.vertices, case.scan.faces, rings=3)
+    assert 200 < lips.size < 400
+
+    def lip_error(angle: float) -> float:
+        result = register_template_to_scan(case.scan, idx, w, scan, truth[idx[:, 0]], max_normal_angle_deg=angle,
+                                           rest_weight=DEFAULT_REST_WEIGHT)
+        return float(np.linalg.norm(result.vertices[lips] - truth[lips], axis=1).mean())
+
+    assert lip_error(MAX_NORMAL_ANGLE_DEG) < 0.8 * lip_error(60.0)

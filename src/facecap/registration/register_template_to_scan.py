@@ -21,6 +21,9 @@ __all__ = ["register_template_to_scan", "TemplateRegistration", "DEFAULT_CLOSEST
 DEFAULT_CLOSEST_POINT_WEIGHTS = (0.1, 0.5, 2.0)
 """The w3 schedule of the paper: the closest-point term grows over three iterations."""
 
+MAX_NORMAL_ANGLE_DEG = 20.0
+"""Largest angle between a template normal and the scan's at its closest point for the pair to count."""
+
 
 @dataclass(frozen=True, eq=False)
 class TemplateRegistration:
@@ -65,7 +68,7 @@ def register_template_to_scan(
     laplacian_weight: float = 1.0,
     closest_point_weights: Sequence[float] = DEFAULT_CLOSEST_POINT_WEIGHTS,
     max_distance_mm: float = 5.0,
-    max_normal_angle_deg: float = 60.0,
+    max_normal_angle_deg: float = MAX_NORMAL_ANGLE_DEG,
     rest_weight: float = 0.0,
     backend: Backend = "auto",
 ) -> TemplateRegistration:
@@ -100,9 +103,15 @@ def register_template_to_scan(
         ``w3`` per iteration.
     max_distance_mm : float, default 5.0
         Closest points farther than this are ignored (holes, cropped borders).
-    max_normal_angle_deg : float, default 60
-        Closest points whose surface normal disagrees more than this with the
-        template's are ignored (the other side of a lip, an eyelid).
+    max_normal_angle_deg : float, default 20 (:data:`MAX_NORMAL_ANGLE_DEG`)
+        Closest points whose surface normal (the scan's vertex normals,
+        interpolated) disagrees more than this with the template's are
+        ignored (the other side of a lip, an eyelid). Not in the paper. At 60
+        degrees the inner lips, which face into the mouth and no scan sees,
+        were pulled onto the lips' visible side: on four generated takes the
+        blend's mouth error fell from 0.41-0.59 mm to 0.25-0.46 mm at 20
+        degrees. Scans with three times the noise lose under 2 % of their
+        matched vertices at 20 degrees.
     rest_weight : float, default 0
         ``w0``, not in the paper: a weak pull of every vertex towards the
         template's own position. Where neither a marker nor the scan says
@@ -176,15 +185,20 @@ def register_template_to_scan(
     cos_limit = np.cos(np.deg2rad(max_normal_angle_deg))
 
     flipped = _scan_normals_flipped(D, Fs, scan_V, scan_F, scan_normals)
-    if flipped:
-        scan_normals = -scan_normals
+    # the scan's normal at a closest point interpolates its vertex normals: a face normal of a
+    # dense noisy scan tilts by several degrees, which a tight agreement limit would punish
+    scan_vertex_normals = igl.per_vertex_normals(scan_V, scan_F) * (-1.0 if flipped else 1.0)
 
     matched = np.zeros(n, dtype=bool)
     distance = np.full(n, np.nan)
     for w3 in closest_point_weights:
         sq, tri, cp = igl.point_mesh_squared_distance(D, scan_V, scan_F)
+        corners = scan_F[tri]
+        bary = igl.barycentric_coordinates(cp, scan_V[corners[:, 0]], scan_V[corners[:, 1]], scan_V[corners[:, 2]])
+        smooth = np.einsum("kc,kcd->kd", np.clip(np.nan_to_num(bary), 0.0, 1.0), scan_vertex_normals[corners])
+        smooth /= np.maximum(np.linalg.norm(smooth, axis=1, keepdims=True), 1e-300)
         normals = igl.per_vertex_normals(D, Fs)
-        agree = np.einsum("ij,ij->i", normals, scan_normals[tri]) >= cos_limit
+        agree = np.einsum("ij,ij->i", normals, smooth) >= cos_limit
         matched = (np.sqrt(sq) <= max_distance_mm) & agree & ~on_rim[tri]
         weight = np.where(matched, w3, 0.0)
         D = solve(weight, weight[:, None] * cp)
