@@ -215,3 +215,5 @@ def test_bad_input_is_named(case, same_expression) -> None:
         register_markers_to_scan(frame, scan.mesh, template_markers=frame[:5])
     with pytest.raises(InputError, match="scan"):
         register_markers_to_scan(frame, scan.mesh.vertices)  # type: ignore[arg-type]
+    with pytest.raises(InputError, match="deformation_weight"):
+        register_markers_to_scan(frame, scan.mesh, deformation_weight=-1.0)

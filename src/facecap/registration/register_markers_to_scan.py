@@ -249,6 +249,7 @@ def register_markers_to_scan(
     offset = as_positive(marker_offset_mm, name="marker_offset_mm", allow_zero=True)
     max_residual_mm = as_positive(max_residual_mm, name="max_residual_mm")
     regularization = as_positive(regularization, name="regularization", allow_zero=True)
+    deformation_weight = as_positive(deformation_weight, name="deformation_weight", allow_zero=True)
     if int(nonrigid_iterations) != nonrigid_iterations or nonrigid_iterations < 0:
         raise InputError(f"nonrigid_iterations: expected a non-negative integer, got {nonrigid_iterations!r}")
     S = None if subspace is None else _as_subspace(subspace, M)
@@ -290,7 +291,8 @@ def register_markers_to_scan(
     D = np.zeros((Xs.shape[0], 3, 0)) if S is None else np.moveaxis(S[:, seen] - Xs[None], 0, -1)
     fit_options = dict(
         surface=surface, target_offset=sign * offset, trim=float(trim), max_residual_mm=max_residual_mm,
-        regularization=regularization, deformation_weight=deformation_weight, iterations=int(nonrigid_iterations), tolerance_mm=tolerance_mm,
+        regularization=regularization, deformation_weight=deformation_weight, iterations=int(nonrigid_iterations),
+        tolerance_mm=tolerance_mm,
     )
     if S is not None and nonrigid_iterations > 0:
         R, t, c = _subspace_icp(Xs, D, R, t, c, joint=False, **fit_options)  # eq. (6), T fixed
@@ -406,7 +408,7 @@ def _subspace_icp(
             ridge[:, J.shape[1] - K :] = np.sqrt(lam) * np.eye(K)
             # the markers' own displacement, 3 rows each: the normal residuals leave a slide along
             # the surface free, and the subspace uses that freedom to fit noise elsewhere
-            RD = np.einsum("ij,mjk->mik", R, D).reshape(-1, K)
+            RD = np.einsum("ij,mjk->mik", R, D).reshape(-1, K) if deformation_weight > 0 else np.zeros((0, K))
             stiff = np.zeros((RD.shape[0], J.shape[1]))
             stiff[:, J.shape[1] - K :] = np.sqrt(deformation_weight) * RD
             A = np.concatenate([J, ridge, stiff])

@@ -15,6 +15,7 @@ from ..mesh.laplacian import laplace_operators
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import FloatArray, IntArray
+from .rigid_icp import interpolated_normals
 
 __all__ = ["register_template_to_scan", "TemplateRegistration", "DEFAULT_CLOSEST_POINT_WEIGHTS"]
 
@@ -193,12 +194,9 @@ def register_template_to_scan(
     distance = np.full(n, np.nan)
     for w3 in closest_point_weights:
         sq, tri, cp = igl.point_mesh_squared_distance(D, scan_V, scan_F)
-        corners = scan_F[tri]
-        bary = igl.barycentric_coordinates(cp, scan_V[corners[:, 0]], scan_V[corners[:, 1]], scan_V[corners[:, 2]])
-        smooth = np.einsum("kc,kcd->kd", np.clip(np.nan_to_num(bary), 0.0, 1.0), scan_vertex_normals[corners])
-        smooth /= np.maximum(np.linalg.norm(smooth, axis=1, keepdims=True), 1e-300)
+        smooth = interpolated_normals(cp, scan_F[tri], scan_V, scan_vertex_normals)
         normals = igl.per_vertex_normals(D, Fs)
-        agree = np.einsum("ij,ij->i", normals, smooth) >= cos_limit
+        agree = np.einsum("ij,ij->i", normals, smooth) >= cos_limit  # NaN compares False: unusable
         matched = (np.sqrt(sq) <= max_distance_mm) & agree & ~on_rim[tri]
         weight = np.where(matched, w3, 0.0)
         D = solve(weight, weight[:, None] * cp)

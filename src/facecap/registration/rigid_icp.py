@@ -97,17 +97,24 @@ class _Surface:
         point-to-plane energy is smooth across edges (face normals make ICP cycle between faces).
         """
         sq, I, C = self.tree.squared_distance(self.V, self.F, Y)
-        corners = self.F[I]
-        L = igl.barycentric_coordinates(C, self.V[corners[:, 0]], self.V[corners[:, 1]], self.V[corners[:, 2]])
-        n = np.einsum("kc,kcd->kd", np.clip(np.nan_to_num(L), 0.0, 1.0), self.vertex_normals[corners])
-        length = np.linalg.norm(n, axis=1, keepdims=True)
-        n = np.where(length > 1e-9, n / np.maximum(length, 1e-300), np.nan)  # NaN: no normal, pair unusable
+        n = interpolated_normals(C, self.F[I], self.V, self.vertex_normals)
         on_rim = np.zeros(Y.shape[0], dtype=bool)
         if self.boundary.shape[0]:
             sq_rim, _, _ = self.boundary_tree.squared_distance(self.V, self.boundary, Y)
             d, d_rim = np.sqrt(sq), np.sqrt(sq_rim)
             on_rim = d_rim - d <= 1e-6 * (1.0 + d)
         return sq, n, C, on_rim
+
+
+def interpolated_normals(points: FloatArray, corners: IntArray, V: FloatArray, vertex_normals: FloatArray) -> FloatArray:
+    """Unit normals at points on triangles ``corners`` (k, 3): the corners' vertex normals, barycentrically mixed.
+
+    A row whose mix vanishes (degenerate triangle, opposed normals) is NaN: no normal, pair unusable.
+    """
+    L = igl.barycentric_coordinates(points, V[corners[:, 0]], V[corners[:, 1]], V[corners[:, 2]])
+    n = np.einsum("kc,kcd->kd", np.clip(np.nan_to_num(L), 0.0, 1.0), vertex_normals[corners])
+    length = np.linalg.norm(n, axis=1, keepdims=True)
+    return np.where(length > 1e-9, n / np.maximum(length, 1e-300), np.nan)
 
 
 def _boundary_edges(F: IntArray) -> IntArray:
