@@ -3,8 +3,8 @@
 Each take runs the command line as a user would: the generator writes a take, its
 scan and the dense truth; ``facecap animate`` (head-band stabilisation) is the
 baseline; ``facecap plan-scans`` chooses the frames; each chosen frame's true
-expression is scanned by :func:`facecap.synth.scan_expression.scan_expression`
-(20k vertices, its own topology and scanner frame, noise and holes);
+expression is scanned by :func:`facecap.synth.write_planned_scans` (20k
+vertices, its own topology and scanner frame, noise and holes);
 ``facecap register-scans --template`` (the neutral scan) and ``facecap blend``
 rebuild the take; ``facecap evaluate``'s comparison gives both dense errors.
 
@@ -26,10 +26,8 @@ import time
 from pathlib import Path
 
 from facecap.cli import main
-from facecap.io import write_mesh
 from facecap.report.evaluate_result import evaluate_result
-from facecap.synth import generate_performance, load_ict_sample, write_synthetic_case
-from facecap.synth.scan_expression import scan_expression
+from facecap.synth import generate_performance, load_ict_sample, write_planned_scans, write_synthetic_case
 
 DEFAULT_TAKES = ("0:0.001", "1:0.0009", "2:0.0009", "3:0.0011")
 
@@ -45,12 +43,7 @@ def run_take(seed: int, tolerance: float, root: Path, *, frames: int, markers: i
     assert main([*cli, "plan-scans", "--markers", str(files.markers), "--out", str(root / "plan.json"),
                  "--tolerance", str(tolerance)]) == 0
     planned = json.loads((root / "plan.json").read_text())["frames"]
-    scans = []
-    for i, f in enumerate(planned):
-        path = root / f"scan_{i}.obj"
-        write_mesh(scan_expression(case.truth_vertices[f], case.scan.faces, seed=i,
-                                   target_vertices=scan_vertices).mesh, path)
-        scans.append(str(path))
+    scans = [str(p) for p in write_planned_scans(case, planned, root, target_vertices=scan_vertices)]
     t = time.perf_counter()
     assert main([*cli, "register-scans", "--plan", str(root / "plan.json"), "--markers", str(files.markers),
                  "--scans", *scans, "--template", str(files.scan), "--out", str(root / "bases")]) == 0

@@ -47,9 +47,7 @@ from _load import Window, peak_rss_gb  # noqa: E402
 
 from facecap.blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402
-from facecap.io.write_mesh import write_mesh  # noqa: E402
-from facecap.synth import generate_performance, load_ict_sample, write_synthetic_case  # noqa: E402
-from facecap.synth.scan_expression import scan_expression  # noqa: E402
+from facecap.synth import generate_performance, load_ict_sample, write_planned_scans, write_synthetic_case  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -70,18 +68,14 @@ def main(argv: list[str] | None = None) -> int:
         with Window() as w_plan:
             plan = plan_scans(files.markers, root / "plan.json", tolerance=0.0, max_frames=args.scans,
                               progress=False)
-        scan_paths, scan_sizes = [], []
-        for i, f in enumerate(plan.frames):
-            scanned = scan_expression(case.truth_vertices[f], case.scan.faces, seed=i,
-                                      target_vertices=args.scan_vertices)
-            scan_sizes.append(scanned.mesh.n_vertices)
-            scan_paths.append(root / f"scan_{i:02d}.ply")
-            write_mesh(scanned.mesh, scan_paths[-1])
+        scan_paths = write_planned_scans(case, plan.frames, root, target_vertices=args.scan_vertices,
+                                         file_format="ply")
 
         with Window() as w_reg:
             report = register_planned_scans(root / "plan.json", files.markers, scan_paths, root / "bases",
                                             progress=False)
         rss_after_registration = peak_rss_gb()
+        scan_sizes = [entry["vertices"] for entry in report["scans"]]
 
         with Window() as w_blend:
             blend = blend_take(root / "bases", files.markers, root / "blend", progress=False)

@@ -178,20 +178,15 @@ def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, frame:
     noise, holes, own frame), so the blend can be scored like the thin shell.
     """
     from .blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans
-    from .io.write_mesh import write_mesh
     from .report import MeshPanel, plot_series, render_side_by_side
     from .report.evaluate_result import evaluate_result
-    from .synth.scan_expression import scan_expression
+    from .synth import write_planned_scans
 
     root = stage / "scans"
     root.mkdir()
     pictures = stage / "pictures"
     plan = plan_scans(files.markers, root / "plan.json", plot_path=pictures / "scan_selection.png", progress=progress)
-    scan_paths = []
-    for i, f in enumerate(plan.frames):
-        scanned = scan_expression(case.truth_vertices[f], case.scan.faces, seed=100 + i, target_vertices=9000)
-        scan_paths.append(root / f"scan_{i:02d}_frame_{f:04d}.obj")
-        write_mesh(scanned.mesh, scan_paths[-1])
+    scan_paths = write_planned_scans(case, plan.frames, root, target_vertices=9000, first_seed=100)
     registration = register_planned_scans(root / "plan.json", files.markers, scan_paths, root / "bases",
                                           template_path=files.scan, progress=progress)
     blend_take(root / "bases", files.markers, root / "blend", progress=progress)

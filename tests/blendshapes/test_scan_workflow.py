@@ -1,16 +1,13 @@
 """The scan workflow end to end through the CLI, on a small generated take with scanned expressions."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from facecap.cli import main
-from facecap.io import write_mesh
 from facecap.markers import rigid_fit
-from facecap.synth import generate_performance, load_ict_sample, write_synthetic_case
-from facecap.synth.scan_expression import scan_expression
+from facecap.synth import generate_performance, load_ict_sample, write_planned_scans, write_synthetic_case
 
 
 @pytest.fixture(scope="module")
@@ -23,11 +20,7 @@ def workflow(tmp_path_factory):
     assert main(["-q", "plan-scans", "--markers", str(files.markers), "--out", str(root / "plan.json"),
                  "--max-scans", "4"]) == 0
     frames = json.loads((root / "plan.json").read_text())["frames"]
-    scans = []
-    for i, f in enumerate(frames):
-        path = root / f"scan_{i}.obj"
-        write_mesh(scan_expression(case.truth_vertices[f], case.scan.faces, seed=i, target_vertices=9000).mesh, path)
-        scans.append(str(path))
+    scans = [str(p) for p in write_planned_scans(case, frames, root, target_vertices=9000)]
     return root, case, files, frames, scans
 
 

@@ -166,7 +166,8 @@ def test_a_deformation_weight_stops_markers_sliding_along_the_skin() -> None:
     def worst_skin_error(reg: MarkerRegistration) -> float:
         return float(np.linalg.norm(reg.surface_points - V[mv], axis=1)[~reg.unmatched].max())
 
-    assert worst_skin_error(kept) < 0.4 < 0.6 < worst_skin_error(free)
+    assert worst_skin_error(kept) < 0.4
+    assert worst_skin_error(free) > 0.6  # the slide is real on this take
 
 
 def test_flipped_normals_are_detected_and_still_register(case, same_expression) -> None:

@@ -7,7 +7,7 @@ from .generate_performance import SyntheticCase, generate_performance
 from .ict_sample import IctSample, bundled_path, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
 from .scan_expression import ScannedExpression, scan_expression
-from .write_synthetic_case import CaseFiles, write_synthetic_case
+from .write_synthetic_case import CaseFiles, write_planned_scans, write_synthetic_case
 
 __all__ = [
     "EXPRESSION_PRESETS",
@@ -22,5 +22,6 @@ __all__ = [
     "load_ict_sample",
     "scan_expression",
     "smooth_expression_curves",
+    "write_planned_scans",
     "write_synthetic_case",
 ]

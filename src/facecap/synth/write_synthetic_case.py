@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import NamedTuple
+from typing import NamedTuple, Sequence
 
 import numpy as np
 
@@ -13,8 +13,9 @@ from ..io.write_markers import write_markers
 from ..io.write_mesh import write_mesh
 from ..units import mm_per_unit
 from .generate_performance import SyntheticCase
+from .scan_expression import scan_expression
 
-__all__ = ["write_synthetic_case", "CaseFiles"]
+__all__ = ["write_synthetic_case", "write_planned_scans", "CaseFiles"]
 
 
 class CaseFiles(NamedTuple):
@@ -86,3 +87,35 @@ def write_synthetic_case(
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
     return CaseFiles(scan_path, markers_path, map_path, truth_path)
+
+
+def write_planned_scans(
+    case: SyntheticCase,
+    frames: Sequence[int],
+    folder: str | Path,
+    *,
+    target_vertices: int | None = None,
+    first_seed: int = 0,
+    file_format: str = "obj",
+) -> list[Path]:
+    """Scan the true expression of each planned frame and write it, as a scanning session of the plan would.
+
+    Scan ``i`` is :func:`~facecap.synth.scan_expression.scan_expression` of
+    ``case.truth_vertices[frames[i]]`` with seed ``first_seed + i`` (its own
+    sampling, noise, holes and scanner frame), written to
+    ``scan_{i:02d}_frame_{frame:04d}.{file_format}``, in the plan's order, as
+    ``facecap register-scans --scans`` takes them.
+
+    Returns
+    -------
+    list of Path
+    """
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for i, f in enumerate(frames):
+        scanned = scan_expression(case.truth_vertices[int(f)], case.scan.faces, seed=first_seed + i,
+                                  target_vertices=target_vertices)
+        paths.append(out / f"scan_{i:02d}_frame_{int(f):04d}.{file_format}")
+        write_mesh(scanned.mesh, paths[-1])
+    return paths
