@@ -39,6 +39,28 @@ def _smoothstep(x: np.ndarray) -> np.ndarray:
     return x * x * x * (x * (6 * x - 15) + 10)  # C2 ease: zero velocity and acceleration at both ends
 
 
+def _blink_curve(rng: np.random.Generator, t: np.ndarray, duration: float, lead_in_s: float,
+                 blinks_per_second: float) -> np.ndarray:
+    """(T,) blink closure in [0, 1]: 0.2-0.3 s pulses, the first 0.3-1.5 s after the lead-in, gaps >= 0.4 s."""
+    blink_at = lead_in_s + rng.uniform(0.3, 1.5)
+    blink = np.zeros(t.size)
+    while blink_at < duration:
+        close = rng.uniform(0.06, 0.1)
+        blink = np.maximum(blink, _smoothstep((t - blink_at) / close) * (1.0 - _smoothstep((t - blink_at - close - 0.04) / (close * 1.5))))
+        blink_at += rng.exponential(1.0 / blinks_per_second) + 0.4
+    return blink
+
+
+def _range(x: tuple[float, float], name: str) -> tuple[float, float]:
+    try:
+        lo, hi = (as_positive(v, name=name) for v in x)
+    except TypeError:
+        raise InputError(f"{name}: expected (low, high) durations, got {x!r}") from None
+    if lo > hi:
+        raise InputError(f"{name}: expected (low, high) with low <= high, got {x!r}")
+    return lo, hi
+
+
 def smooth_expression_curves(
     n_frames: int,
     names: Sequence[str],
@@ -49,6 +71,10 @@ def smooth_expression_curves(
     intensity: tuple[float, float] = (0.6, 1.0),
     blinks_per_second: float = 0.3,
     lead_in_s: float = 0.25,
+    ramp_in_s: tuple[float, float] = (0.25, 0.6),
+    ramp_out_s: tuple[float, float] = (0.3, 0.7),
+    asymmetry: float = 0.0,
+    max_timing_offset_s: float = 0.0,
 ) -> FloatArray:
     """Blendshape weights over time for a plausible facial performance.
 
@@ -80,6 +106,17 @@ def smooth_expression_curves(
         Mean blink rate (the gap between blinks is at least 0.4 s).
     lead_in_s : float, default 0.25
         Neutral time at the start, s.
+    ramp_in_s, ramp_out_s : (float, float), default (0.25, 0.6) and (0.3, 0.7)
+        Range of the ease-in and ease-out durations, s. (0.06, 0.15) gives
+        the rapid onsets of a real actor (60-150 ms ramps).
+    asymmetry : float, default 0.0
+        In [0, 1): each expression's ``_L`` and ``_R`` shapes get intensities
+        ``scale (1 + a u)`` and ``scale (1 - a u)`` with ``|u|`` uniform in
+        [0.25, 1] and a random sign, ``a = asymmetry``; unpaired shapes keep
+        ``scale``. 0 keeps the presets symmetric.
+    max_timing_offset_s : float, default 0.0
+        Each expression's ``_R`` shapes start up to this much earlier or
+        later than its ``_L`` shapes (uniform), s.
 
     Returns
     -------
@@ -89,14 +126,18 @@ def smooth_expression_curves(
     ------
     InputError
         If ``n_frames`` is not a positive integer, ``names`` is not a sequence
-        of strings, or a rate, duration or intensity is not positive/finite.
+        of strings, a rate, duration or intensity is not positive/finite, a
+        range is not (low, high) with low <= high, or ``asymmetry`` is not in [0, 1).
 
     Notes
     -----
     The ramps use the quintic smoothstep ``s(x) = 6x^5 - 15x^4 + 10x^3``,
     whose first and second derivatives vanish at both ends; an expression
     with ramp-in ``a``, hold ``h`` and ramp-out ``r`` starting at ``t0`` has
-    envelope ``s((t - t0)/a) (1 - s((t - t0 - a - h)/r))``.
+    envelope ``s((t - t0)/a) (1 - s((t - t0 - a - h)/r))``. The asymmetry
+    and timing offsets draw from a second generator seeded with
+    ``(seed, 1)``, so with their defaults the curves are those of earlier
+    versions, draw for draw.
 
     Examples
     --------
@@ -116,7 +157,14 @@ def smooth_expression_curves(
     if lo > hi:
         raise InputError(f"intensity: expected (low, high) with low <= high, got {intensity!r}")
     intensity = (lo, hi)
+    ramp_in_s = _range(ramp_in_s, "ramp_in_s")
+    ramp_out_s = _range(ramp_out_s, "ramp_out_s")
+    asymmetry = as_positive(asymmetry, name="asymmetry", allow_zero=True)
+    if asymmetry >= 1.0:
+        raise InputError(f"asymmetry: expected a value in [0, 1), got {asymmetry}")
+    max_timing_offset_s = as_positive(max_timing_offset_s, name="max_timing_offset_s", allow_zero=True)
     rng = np.random.default_rng(seed)
+    rng_side = np.random.default_rng((seed, 1))
     index = {s: i for i, s in enumerate(names)}
     t = np.arange(n_frames) / float(rate)
     W = np.zeros((n_frames, len(names)))
@@ -125,19 +173,22 @@ def smooth_expression_curves(
     presets = list(EXPRESSION_PRESETS)
     while start < duration:
         preset = EXPRESSION_PRESETS[presets[rng.integers(len(presets))]]
-        ramp_in, hold, ramp_out = rng.uniform(0.25, 0.6), rng.uniform(0.2, 1.0), rng.uniform(0.3, 0.7)
+        ramp_in, hold, ramp_out = rng.uniform(*ramp_in_s), rng.uniform(0.2, 1.0), rng.uniform(*ramp_out_s)
         envelope = _smoothstep((t - start) / ramp_in) * (1.0 - _smoothstep((t - start - ramp_in - hold) / ramp_out))
         scale = rng.uniform(*intensity)
+        side_gain, envelope_r = {"_L": 1.0, "_R": 1.0}, envelope
+        if asymmetry > 0 or max_timing_offset_s > 0:
+            u = rng_side.uniform(0.25, 1.0) * rng_side.choice((-1.0, 1.0))
+            side_gain = {"_L": 1.0 + asymmetry * u, "_R": 1.0 - asymmetry * u}
+            lag = rng_side.uniform(-max_timing_offset_s, max_timing_offset_s)
+            envelope_r = (_smoothstep((t - start - lag) / ramp_in)
+                          * (1.0 - _smoothstep((t - start - lag - ramp_in - hold) / ramp_out)))
         for name, weight in preset.items():
             if name in index:
-                W[:, index[name]] += scale * weight * envelope
+                gain = side_gain.get(name[-2:], 1.0)
+                W[:, index[name]] += gain * scale * weight * (envelope_r if name.endswith("_R") else envelope)
         start += rng.exponential(1.0 / expressions_per_second) + 0.5 * ramp_in
-    blink_at = lead_in_s + rng.uniform(0.3, 1.5)
-    blink = np.zeros(n_frames)
-    while blink_at < duration:
-        close = rng.uniform(0.06, 0.1)
-        blink = np.maximum(blink, _smoothstep((t - blink_at) / close) * (1.0 - _smoothstep((t - blink_at - close - 0.04) / (close * 1.5))))
-        blink_at += rng.exponential(1.0 / blinks_per_second) + 0.4
+    blink = _blink_curve(rng, t, duration, lead_in_s, blinks_per_second)
     for name in ("eyeBlink_L", "eyeBlink_R"):
         if name in index:
             W[:, index[name]] = np.maximum(W[:, index[name]], blink)

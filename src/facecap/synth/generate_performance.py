@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -14,17 +14,29 @@ from ..errors import InputError
 from ..structures import MarkerSequence, Mesh
 from ..typing import FloatArray, IntArray
 from ..validate import as_faces, as_positive, as_rigid_transform
-from .expression_curves import smooth_expression_curves
+from .expression_curves import _smoothstep, smooth_expression_curves
 from .ict_sample import IctSample, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
+from .real_motion_curves import REAL_CURVE_NAMES, real_motion_curves
+from .speech_curves import speech_expression_curves
 
-__all__ = ["SyntheticCase", "generate_performance", "vertex_normals_at"]
+__all__ = ["CURVE_GENERATORS", "HEAD_PIVOTS_MM", "SyntheticCase", "generate_performance", "named_curves",
+           "vertex_normals_at"]
 
 DEFAULT_FRAMES = 240
 DEFAULT_MARKERS = 90
 HEADBAND_OFFSET_MM = 15.0
 """Height of the head-band markers above the skin."""
 MAX_HEADBAND_MARKERS = 16
+HEAD_PIVOTS_MM: dict[str, tuple[float, float, float]] = {
+    "upper_neck": (0.0, -30.0, -110.0),
+    "neck": (0.0, -90.0, -80.0),
+}
+"""Head pivot relative to the chin (ICT landmark 8), mm: the upper neck (near C1-C2, the default)
+or the lower cervical spine (near C6-C7), about which a talking actor's whole head and neck sway."""
+TURN_DURATION_S = (0.3, 0.8)
+"""Duration of one head turn or nod of ``head_motion='turns'``, s."""
+HEAD_MOTIONS = ("sway", "turns")
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,6 +182,41 @@ def _scaled_motion(rng: np.random.Generator, n_frames: int, rate: float, amplitu
     return sig * (amplitude / peak) if peak > 0 and amplitude > 0 else np.zeros_like(sig)
 
 
+def _turn_motion(rng: np.random.Generator, n_frames: int, rate: float, n_signals: int,
+                 amplitudes: Sequence[float]) -> list[FloatArray]:
+    """(T, 3) piecewise-constant poses joined by quick C2 turns, one per amplitude, 0 at frame 0.
+
+    A talking actor holds a pose for 0.4-2.5 s, then turns or nods to a new
+    one within 0.3-0.8 s (quintic smoothstep). Every signal shares the same
+    timing (a turn moves the rotation and the translation together); each
+    has its own random targets, scaled so that its norm peaks at its
+    amplitude over ``max(T, 10 s)``. The first hold starts at the rest pose.
+    """
+    n_ref = max(n_frames, round(10.0 * rate))
+    t = np.arange(n_ref) / rate
+    starts, durations = [], []
+    at = rng.uniform(0.2, 1.0)
+    while at < t[-1] + 1.0:
+        duration = rng.uniform(TURN_DURATION_S[0], TURN_DURATION_S[1])
+        starts.append(at)
+        durations.append(duration)
+        at += duration + rng.uniform(0.4, 2.5)
+    out = []
+    for amplitude in amplitudes:
+        directions = rng.normal(size=(len(starts), n_signals))
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        targets = directions * rng.uniform(0.3, 1.0, size=(len(starts), 1))
+        sig = np.zeros((n_ref, n_signals))
+        previous = np.zeros(n_signals)
+        for start, duration, target in zip(starts, durations, targets):
+            step = _smoothstep((t - start) / duration)[:, None]
+            sig += step * (target - previous)
+            previous = target
+        peak = float(np.linalg.norm(sig, axis=1).max())
+        out.append(sig[:n_frames] * (amplitude / peak) if peak > 0 and amplitude > 0 else np.zeros((n_frames, n_signals)))
+    return out
+
+
 def _default_mocap_frame(rng: np.random.Generator) -> FloatArray:
     """A Z-up capture volume: the head about 1.5 m up, facing a random direction."""
     T = np.eye(4)
@@ -260,6 +307,33 @@ def _gaps(rng: np.random.Generator, n_frames: int, n_total: int, fraction: float
     return missing
 
 
+CURVE_GENERATORS = ("smooth", "speech", "real", "rapid_asymmetric")
+"""Names ``generate_performance(curves=...)`` accepts."""
+
+RAPID_ASYMMETRIC = {"ramp_in_s": (0.06, 0.15), "ramp_out_s": (0.06, 0.15), "asymmetry": 0.4,
+                    "max_timing_offset_s": 0.08}
+"""Options of :func:`smooth_expression_curves` behind ``curves='rapid_asymmetric'``."""
+
+
+def named_curves(kind: str, n_frames: int, names: Sequence[str], *, rate: float, seed: int) -> FloatArray:
+    """(T, len(names)) weights from the generator called ``kind`` (one of :data:`CURVE_GENERATORS`)."""
+    if kind == "smooth":
+        return smooth_expression_curves(n_frames, names, rate=rate, seed=seed)
+    if kind == "rapid_asymmetric":
+        return smooth_expression_curves(n_frames, names, rate=rate, seed=seed, **RAPID_ASYMMETRIC)
+    if kind == "speech":
+        return speech_expression_curves(n_frames, names, rate=rate, seed=seed)
+    if kind == "real":
+        W = real_motion_curves(n_frames, rate=rate, seed=seed)
+        index = {s: i for i, s in enumerate(REAL_CURVE_NAMES)}
+        out = np.zeros((n_frames, len(names)))
+        for j, s in enumerate(names):
+            if s in index:
+                out[:, j] = W[:, index[s]]
+        return out
+    raise InputError(f"curves: expected an array or one of {CURVE_GENERATORS}, got {kind!r}")
+
+
 def _count(x: Any, name: str, *, minimum: int) -> int:
     if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < minimum:
         raise InputError(f"{name}: expected an integer >= {minimum}, got {x!r}")
@@ -279,6 +353,8 @@ def generate_performance(
     gap_fraction: float = 0.02,
     head_rotation_deg: float = 4.0,
     head_translation_mm: float = 5.0,
+    head_pivot: str = "upper_neck",
+    head_motion: str = "sway",
     headband_markers: int = 4,
     mocap_frame: Any = None,
     seed: int = 0,
@@ -306,9 +382,14 @@ def generate_performance(
     identity : (k,) float array, optional
         ICT identity coefficients (k <= 8): who the actor is. Default: the
         generic ICT face.
-    curves : (T, 53) float array, optional
-        Blendshape weights per frame. Default:
-        ``smooth_expression_curves(T, sample.expression_names, rate=rate, seed=seed)``.
+    curves : {None, 'smooth', 'speech', 'real', 'rapid_asymmetric'} or (T, 53) float array, optional
+        Blendshape weights per frame, or the name of a generator run with
+        ``(T, sample.expression_names, rate=rate, seed=seed)``: 'smooth' (the
+        default, :func:`smooth_expression_curves`), 'speech'
+        (:func:`speech_expression_curves`), 'real' (:func:`real_motion_curves`,
+        fitted to the bundled real take) or 'rapid_asymmetric'
+        (:func:`smooth_expression_curves` with ramps of 60-150 ms, L/R
+        intensities differing by up to 40 % and L/R timing offsets up to 80 ms).
     marker_layout : {None, 'animface'} or (M,) int array or dict of str to int, optional
         Where the face markers go. None: :func:`choose_marker_vertices` on
         the front of the face (ears, scalp, neck and the underside of the
@@ -324,10 +405,20 @@ def generate_performance(
         frames, in [0, 0.5]. Frame 0 is always complete and no frame loses
         every marker.
     head_rotation_deg : float, default 4.0
-        Peak rotation of the head about a pivot in the neck (about 3 cm below
-        and 11 cm behind the chin), over the take or its first 10 s.
+        Peak rotation of the head about ``head_pivot``, over the take or its
+        first 10 s.
     head_translation_mm : float, default 5.0
         Peak head translation, likewise.
+    head_pivot : {'upper_neck', 'neck'}, default 'upper_neck'
+        Centre of the head rotation (:data:`HEAD_PIVOTS_MM`, from the chin,
+        on the face's mid-plane): 'upper_neck' 3 cm below and 11 cm behind
+        the chin; 'neck' 9 cm below and 8 cm behind it (the lower cervical
+        spine), so that a rotation also swings the face sideways.
+    head_motion : {'sway', 'turns'}, default 'sway'
+        'sway': sums of three slow sinusoids (0.1-0.6 Hz) per axis. 'turns':
+        holds of 0.4-2.5 s joined by quick turns or nods of 0.3-0.8 s
+        (quintic smoothstep) to a new random pose, like a talking actor.
+        Either is zero at frame 0 and peaks at the amplitudes above.
     headband_markers : int, default 4
         Markers on a head band 15 mm off the upper forehead and temples
         (0 to 16).
@@ -358,7 +449,8 @@ def generate_performance(
     ``e ~ N(0, noise_mm^2 I)``, with ``n_t`` the area-weighted vertex normal
     of ``truth[t]``. ``head_pose[t] = [R(t) | p - R(t) p + s(t)]`` for a
     pivot ``p``, where the rotation vector of ``R`` and the shift ``s`` are
-    sums of slow sinusoids (0.1-0.6 Hz), zero at frame 0.
+    sums of slow sinusoids (0.1-0.6 Hz) or piecewise holds joined by quick
+    turns, zero at frame 0.
 
     Examples
     --------
@@ -385,11 +477,15 @@ def generate_performance(
         n_markers = _count(n_markers, "n_markers", minimum=1)
     if mocap_frame is not None:
         mocap_frame = as_rigid_transform(mocap_frame, name="mocap_frame")
+    if head_pivot not in HEAD_PIVOTS_MM:
+        raise InputError(f"head_pivot: expected one of {tuple(HEAD_PIVOTS_MM)}, got {head_pivot!r}")
+    if head_motion not in HEAD_MOTIONS:
+        raise InputError(f"head_motion: expected one of {HEAD_MOTIONS}, got {head_motion!r}")
     names = sample.expression_names
 
-    if curves is None:
+    if curves is None or isinstance(curves, str):
         T = DEFAULT_FRAMES if n_frames is None else _count(n_frames, "n_frames", minimum=1)
-        W = smooth_expression_curves(T, names, rate=rate, seed=seed)
+        W = named_curves("smooth" if curves is None else curves, T, names, rate=rate, seed=seed)
     else:
         try:
             W = np.array(curves, dtype=np.float64)
@@ -420,10 +516,14 @@ def generate_performance(
     face_points = skin + offset * vertex_normals_at(truth, F, mv) if offset > 0 else skin
     points = np.concatenate([face_points, np.broadcast_to(band, (T, band.shape[0], 3))], axis=1)
 
-    pivot = V0[sample.landmarks[8]] + np.array([0.0, -30.0, -110.0])  # chin -> upper neck
+    pivot = V0[sample.landmarks[8]] + np.array(HEAD_PIVOTS_MM[head_pivot])  # from the chin
     pivot[0] = float(V0[:, 0].mean())
-    R = Rotation.from_rotvec(_scaled_motion(rng_head, T, rate, rot_rad)).as_matrix().reshape(T, 3, 3)
-    shift = _scaled_motion(rng_head, T, rate, shift_mm)
+    if head_motion == "sway":
+        rotvec = _scaled_motion(rng_head, T, rate, rot_rad)
+        shift = _scaled_motion(rng_head, T, rate, shift_mm)
+    else:
+        rotvec, shift = _turn_motion(rng_head, T, rate, 3, (rot_rad, shift_mm))
+    R = Rotation.from_rotvec(rotvec).as_matrix().reshape(T, 3, 3)
     head_pose = np.tile(np.eye(4), (T, 1, 1))
     head_pose[:, :3, :3] = R
     head_pose[:, :3, 3] = pivot - R @ pivot + shift
