@@ -1,0 +1,217 @@
+"""The benchmark case catalogue: tuned takes and held-out takes (issue 9: a harder generator and a held-out protocol).
+
+Every accuracy benchmark builds its takes from here, so that a number in RESULTS.md
+names the case it came from and the cases cannot drift from one script to another.
+
+Protocol
+--------
+``TUNED_CASES`` are the takes anyone may look at while developing: run the
+reconstruction on them, read per-region errors, choose options and tolerances
+(``Case.tolerance`` of ``facecap plan-scans`` is tuned on these only). They are the
+four default takes of ``bench_scan_accuracy.py`` (seeds 0-3, unchanged) plus four
+hard ones: two that mimic studio captures, a speech take and a rapid/asymmetric take.
+
+``HELD_OUT_CASES`` are for the final report only. Nobody runs a reconstruction on
+them while choosing methods or parameters, nor reads their errors to decide
+anything; a change is judged on the tuned cases, then the held-out numbers are
+measured once and reported as they come, with whatever the method's defaults are
+(their ``tolerance`` is a fixed default, never tuned). Their seeds (>= 100),
+identities, marker counts (40-120), head motions, curves, noise and gaps do not
+appear among the tuned cases. What *is* shared: the ICT face model and its 53
+expressions, the generator's code, and for the ``'real'`` curves the one bundled real
+take (held-out cases play other, time-stretched and reversed segments of it).
+
+Building a case is cheap (``make_case``: about 1-2 s for 600 frames); generating a
+held-out case to check that it builds is fine, reconstructing it is not.
+
+Usage::
+
+    from cases import TUNED_CASES, HELD_OUT_CASES, make_case, case_by_name
+    synthetic = make_case(case_by_name("studio_a_real"), n_frames=600)
+
+    python benchmarks/cases.py            # build every case once, print marker statistics
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+from facecap.synth import SyntheticCase, generate_performance, write_planned_scans
+
+__all__ = ["ALL_CASES", "HELD_OUT_CASES", "TUNED_CASES", "Case", "case_by_name", "make_case", "scan_case"]
+
+CURVES = ("smooth", "speech", "real", "rapid_asymmetric")
+
+
+@dataclass(frozen=True)
+class Case:
+    """One benchmark take.
+
+    Attributes
+    ----------
+    name : str
+        Unique; what a RESULTS.md row quotes.
+    held_out : bool
+        True: report only, never tune on it (see the module docstring).
+    generator : dict
+        Keyword arguments of :func:`facecap.synth.generate_performance` other than
+        ``curves`` and ``n_frames`` (seed, identity, n_markers, noise_mm,
+        gap_fraction, head_rotation_deg, head_translation_mm, head_pivot,
+        head_motion, headband_markers, ...).
+    curves : {'smooth', 'speech', 'real', 'rapid_asymmetric'}
+        The expression-curve generator (``generate_performance(curves=...)``).
+    scan_seed : int
+        ``first_seed`` of :func:`facecap.synth.write_planned_scans`: the
+        scanner simulation of the planned frames.
+    tolerance : float
+        ``facecap plan-scans --tolerance``, chosen on tuned cases so that the
+        plan has 15-30 scans; a fixed default on held-out cases.
+    description : str
+        What the case stands for.
+    """
+
+    name: str
+    held_out: bool
+    generator: dict[str, Any] = field(hash=False)
+    curves: str = "smooth"
+    scan_seed: int = 0
+    tolerance: float = 0.001
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if self.curves not in CURVES:
+            raise ValueError(f"{self.name}: curves must be one of {CURVES}, got {self.curves!r}")
+        if {"curves", "n_frames"} & set(self.generator):
+            raise ValueError(f"{self.name}: give curves as Case.curves and n_frames to make_case")
+
+
+def _default(seed: int, tolerance: float) -> Case:
+    return Case(f"default_{seed}", False, {"seed": seed, "n_markers": 90}, "smooth", scan_seed=0,
+                tolerance=tolerance,
+                description="bench_scan_accuracy's take: generic ICT face, 90 markers, head band of 4, "
+                            "4 deg sway about the upper neck, 0.2 mm noise, 2 % gaps")
+
+
+TUNED_CASES: tuple[Case, ...] = (
+    _default(0, 0.001),
+    _default(1, 0.0009),
+    _default(2, 0.0009),
+    _default(3, 0.0011),
+    Case("studio_a_real", False,
+         {"seed": 10, "identity": (0.72, 1.15, 0.8, -0.68, -0.97, 0.05, 0.6, 0.36), "n_markers": 90,
+          "marker_offset_mm": 1.5, "headband_markers": 0, "head_rotation_deg": 0.0, "head_translation_mm": 0.0},
+         "real", scan_seed=10,
+         description="studio A: real-motion curves on an unseen identity, 90 skin markers 1.5 mm up, no head "
+                     "band, head still, the mocap system in its own rigid frame"),
+    Case("studio_b_neck_sway", False,
+         {"seed": 11, "identity": (1.27, 0.53, 0.45, -0.51, -0.78, 1.04, 0.03, 0.57), "n_markers": 60,
+          "noise_mm": 0.3, "headband_markers": 0, "head_rotation_deg": 6.0, "head_pivot": "neck",
+          "head_motion": "sway"},
+         "smooth", scan_seed=11,
+         description="studio B: another identity, 60 markers, 0.3 mm noise, no head band, head swaying up "
+                     "to 6 deg about the lower neck"),
+    Case("tuned_speech", False,
+         {"seed": 12, "identity": (-0.96, -0.31, -0.9, -0.54, 0.63, -1.04, -0.37, 0.11), "n_markers": 90},
+         "speech", scan_seed=12,
+         description="speech: 4-6 syllables/s jaw and viseme motion, head band of 4, default sway"),
+    Case("tuned_rapid_asymmetric", False,
+         {"seed": 13, "identity": (-0.47, -0.18, -0.16, 0.29, -0.3, 0.19, 0.04, 0.3), "n_markers": 90,
+          "headband_markers": 0},
+         "rapid_asymmetric", scan_seed=13,
+         description="60-150 ms onsets, L/R intensities and timing differing, no head band"),
+)
+
+HELD_OUT_CASES: tuple[Case, ...] = (
+    Case("held_real_turns", True,
+         {"seed": 101, "identity": (0.16, 1.16, -0.46, 0.84, -0.28, -0.67, 0.85, -0.31), "n_markers": 120,
+          "noise_mm": 0.25, "gap_fraction": 0.03, "headband_markers": 0, "head_rotation_deg": 8.0,
+          "head_translation_mm": 6.0, "head_pivot": "neck", "head_motion": "turns"},
+         "real", scan_seed=101,
+         description="real-motion curves, 120 markers, no head band, 8 deg turns about the lower neck"),
+    Case("held_speech_turns", True,
+         {"seed": 102, "identity": (-0.27, -0.97, -1.47, 0.44, -0.82, 0.54, 1.29, -0.08), "n_markers": 70,
+          "noise_mm": 0.2, "gap_fraction": 0.04, "headband_markers": 0, "head_rotation_deg": 6.0,
+          "head_pivot": "neck", "head_motion": "turns"},
+         "speech", scan_seed=102,
+         description="speech, 70 markers, no head band, 6 deg turns about the lower neck, 4 % gaps"),
+    Case("held_rapid_sway", True,
+         {"seed": 103, "identity": (-0.79, 0.28, 0.53, -0.18, 0.01, 0.93, 0.89, 0.5), "n_markers": 40,
+          "noise_mm": 0.3, "gap_fraction": 0.05, "headband_markers": 4, "head_rotation_deg": 10.0,
+          "head_translation_mm": 8.0, "head_pivot": "neck", "head_motion": "sway"},
+         "rapid_asymmetric", scan_seed=103,
+         description="rapid/asymmetric, only 40 markers, head band of 4, 10 deg sway about the lower neck, "
+                     "5 % gaps"),
+    Case("held_real_still", True,
+         {"seed": 104, "identity": (-0.61, -0.04, 0.42, -0.15, -0.43, -0.54, -0.44, -0.47), "n_markers": 80,
+          "noise_mm": 0.3, "gap_fraction": 0.02, "headband_markers": 0, "head_rotation_deg": 0.0,
+          "head_translation_mm": 0.0},
+         "real", scan_seed=104,
+         description="real-motion curves, 80 markers, no head band, head still (a studio-A twin)"),
+    Case("held_smooth_turns", True,
+         {"seed": 105, "identity": (-0.32, 0.8, -0.56, 0.62, 0.29, 0.1, -0.58, -0.32), "n_markers": 100,
+          "noise_mm": 0.25, "gap_fraction": 0.03, "headband_markers": 0, "head_rotation_deg": 10.0,
+          "head_translation_mm": 8.0, "head_pivot": "neck", "head_motion": "turns"},
+         "smooth", scan_seed=105,
+         description="smooth curves, 100 markers, no head band, 10 deg turns about the lower neck"),
+    Case("held_speech_band", True,
+         {"seed": 106, "identity": (1.38, 0.07, 0.38, 0.46, 0.74, -0.17, -0.43, -0.04), "n_markers": 50,
+          "noise_mm": 0.2, "gap_fraction": 0.05, "headband_markers": 3, "head_rotation_deg": 5.0,
+          "head_pivot": "upper_neck", "head_motion": "turns"},
+         "speech", scan_seed=106,
+         description="speech, 50 markers, head band of 3, 5 deg turns about the upper neck, 5 % gaps"),
+)
+
+ALL_CASES: tuple[Case, ...] = TUNED_CASES + HELD_OUT_CASES
+
+
+def case_by_name(name: str) -> Case:
+    """The case called ``name`` (tuned or held out); KeyError lists the names."""
+    for case in ALL_CASES:
+        if case.name == name:
+            return case
+    raise KeyError(f"no case {name!r}; expected one of {[c.name for c in ALL_CASES]}")
+
+
+def make_case(case: Case, *, n_frames: int = 600) -> SyntheticCase:
+    """Generate the take of ``case`` (``generate_performance(**case.generator, curves=case.curves)``)."""
+    kwargs = dict(case.generator)
+    if "identity" in kwargs and kwargs["identity"] is not None:
+        kwargs["identity"] = list(kwargs["identity"])
+    return generate_performance(n_frames=n_frames, curves=case.curves, **kwargs)
+
+
+def scan_case(case: Case, synthetic: SyntheticCase, frames: Sequence[int], folder: str | Path,
+              **kwargs: Any) -> list[Path]:
+    """Scan the planned ``frames`` of ``synthetic`` with the case's scanner seed (:func:`write_planned_scans`)."""
+    return write_planned_scans(synthetic, frames, folder, first_seed=case.scan_seed, **kwargs)
+
+
+def _check_all(n_frames: int = 600) -> None:
+    """Build every case once and print its marker statistics (no reconstruction)."""
+    import time
+
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    names = [c.name for c in ALL_CASES]
+    if len(set(names)) != len(names):
+        raise SystemExit("duplicate case names")
+    print("| case | held out | curves | markers | head band | max marker displacement mm | max head rotation deg "
+          "| gaps % | build s |")
+    print("|---|---|---|---|---|---|---|---|---|")
+    for case in ALL_CASES:
+        t = time.perf_counter()
+        s = make_case(case, n_frames=n_frames)
+        seconds = time.perf_counter() - t
+        M = s.n_face_markers
+        rel = np.linalg.norm(s.noiseless_markers[:, :M] - s.noiseless_markers[:1, :M], axis=2)
+        rot = np.degrees(np.linalg.norm(Rotation.from_matrix(s.head_pose[:, :3, :3]).as_rotvec(), axis=1)).max()
+        gaps = 100 * s.markers.gap_mask.mean()
+        print(f"| {case.name} | {case.held_out} | {case.curves} | {M} | {len(s.headband_labels)} | {rel.max():.1f} "
+              f"| {rot:.1f} | {gaps:.1f} | {seconds:.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    _check_all()
