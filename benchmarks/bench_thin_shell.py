@@ -88,9 +88,10 @@ class MemoryProbe:
         self._thread: Any = None
 
     def install(self) -> None:
+        import importlib
         import threading
 
-        from facecap.deform import animate_scan as module
+        module = importlib.import_module("facecap.deform.animate_scan")  # the module, not the function
 
         probe, base = self, module.ThinShellSolver
 

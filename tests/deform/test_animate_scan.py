@@ -4,7 +4,7 @@ import warnings
 import numpy as np
 import pytest
 
-from facecap.deform import animate_scan as animate_module
+from facecap.deform import ThinShellSolver
 from facecap.deform.animate_scan import animate_scan
 from facecap.errors import InputError, MarkerError
 from facecap.io import read_correspondence, read_markers, read_mesh
@@ -73,7 +73,7 @@ def test_failure_midway_leaves_nothing(capture_case, tmp_path, monkeypatch):
     def broken(self, *args, **kwargs):
         raise RuntimeError("disk on fire")
 
-    monkeypatch.setattr(animate_module.ThinShellSolver, "deform_into", broken)
+    monkeypatch.setattr(ThinShellSolver, "deform_into", broken)
     with pytest.raises(RuntimeError):
         _run(capture_case, out)
     assert not out.exists()

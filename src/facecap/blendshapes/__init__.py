@@ -1,14 +1,40 @@
-"""Blendshapes from mocap (Huang et al. 2011): which frames to scan, and non-negative weights.
+"""Blendshapes from mocap and scans (Huang et al. 2011): which frames to scan, bases, weights, the take rebuilt.
 
-:func:`select_scan_frames` picks the fewest frames of a conditioned take whose
-non-negative blends rebuild every frame (sec. 4, Algorithm 1);
-:func:`nnls_weights` solves the non-negative weights of many frames at once
-(eqs. 3 and 12).
+In the order a user meets them:
+
+- :func:`plan_scans`, :func:`register_planned_scans`, :func:`blend_take`
+  (``scan_workflow.py``): the scan workflow file to file, as ``facecap
+  plan-scans``, ``register-scans`` and ``blend`` run it.
+- :func:`select_scan_frames` (``select_scan_frames.py``): the fewest frames of
+  a conditioned take whose non-negative blends rebuild every frame (sec. 4,
+  Algorithm 1), as a :class:`ScanPlan`.
+- :func:`fit_bases_to_markers` (``fit_bases_to_markers.py``): registered scans
+  deformed to match their frame's markers exactly (section 7).
+- :func:`nnls_weights` (``nnls_weights.py``): non-negative weights of many
+  frames at once (eqs. 3 and 12), as :class:`NnlsWeights`.
+- :func:`blend_weights`, :func:`write_blended_performance`
+  (``reconstruct_performance.py``): the dense performance from bases and weights.
+
+The scan registration itself lives in :mod:`facecap.registration`.
 """
 
 from __future__ import annotations
 
+from .fit_bases_to_markers import fit_bases_to_markers
 from .nnls_weights import NnlsWeights, nnls_weights
+from .reconstruct_performance import blend_weights, write_blended_performance
+from .scan_workflow import blend_take, plan_scans, register_planned_scans
 from .select_scan_frames import ScanPlan, select_scan_frames
 
-__all__ = ["NnlsWeights", "ScanPlan", "nnls_weights", "select_scan_frames"]
+__all__ = [
+    "plan_scans",
+    "register_planned_scans",
+    "blend_take",
+    "select_scan_frames",
+    "ScanPlan",
+    "fit_bases_to_markers",
+    "nnls_weights",
+    "NnlsWeights",
+    "blend_weights",
+    "write_blended_performance",
+]

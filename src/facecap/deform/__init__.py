@@ -1,1 +1,50 @@
-"""deform subpackage."""
+"""Large-scale deformation of a scan by mocap markers (Bickel et al. 2007, section 4).
+
+In the order a user meets them:
+
+- :func:`animate_scan` (``animate_scan.py``): the whole job, from a scan, a
+  take and a map to an output folder; :func:`prepare_markers` is its first
+  stage (match, gap-fill, stabilise and filter the take).
+- :class:`TriharmonicWarp` (``triharmonic_warp.py``): the mocap-to-scan space
+  warp of section 4.1, ``TriharmonicWarp(m0, f0)(m_t)``.
+- :class:`ThinShellSolver` (``thin_shell.py``): the linear thin shell of
+  section 4.2, factored once, ``ThinShellSolver(V, F, marker_vertices).displacements(d)``;
+  :func:`thin_shell_deform` is the one-shot form.
+- :class:`BasisProduct` (``basis_product.py``): the per-frame dense product
+  (the hot path) in float32 or int16 fixed point.
+- :class:`SpdFactor` (``factor_spd.py``): the sparse SPD factorisation
+  (PARDISO, or SciPy's SuperLU where MKL is missing).
+- :func:`rbf_deformation_basis` (``rbf_deform.py``): the warp alone, the
+  baseline the shell must beat.
+
+The functions share their modules' names, so ``facecap.deform.animate_scan``
+is the function; reach a module itself with
+``importlib.import_module("facecap.deform.animate_scan")``.
+"""
+
+from __future__ import annotations
+
+from .animate_scan import AnimationResult, PreparedMarkers, animate_scan, prepare_markers
+from .basis_product import BasisProduct, Precision
+from .factor_spd import SpdFactor, available_backends
+from .rbf_deform import rbf_deformation_basis
+from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, PieceReport, ThinShellSolver, thin_shell_deform
+from .triharmonic_warp import TriharmonicWarp
+
+__all__ = [
+    "animate_scan",
+    "AnimationResult",
+    "prepare_markers",
+    "PreparedMarkers",
+    "TriharmonicWarp",
+    "ThinShellSolver",
+    "thin_shell_deform",
+    "PieceReport",
+    "DEFAULT_KS",
+    "DEFAULT_KB_MM2",
+    "BasisProduct",
+    "Precision",
+    "SpdFactor",
+    "available_backends",
+    "rbf_deformation_basis",
+]

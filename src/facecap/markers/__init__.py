@@ -1,8 +1,11 @@
 """Marker conditioning: gap filling, denoising, head stabilisation and rigid fits.
 
-The usual order for a raw take is :func:`fill_gaps`, :func:`stabilize_head`,
-then :func:`bilateral_filter` on the stabilised positions; :func:`condition_take`
-runs them in that order.
+The usual order for a raw take is :func:`fill_gaps` (``fill_gaps.py``),
+:func:`stabilize_head` (``stabilize_head.py``), then :func:`bilateral_filter`
+(``bilateral_filter.py``) on the stabilised positions; :func:`condition_take`
+(``condition_take.py``) runs them in that order, and :func:`auto_stabilize`
+finds the markers that stay rigid. :func:`rigid_fit` (``rigid_fit.py``) is the
+batched, NaN-aware Kabsch fit they share, returning a :class:`RigidTransform`.
 """
 
 from __future__ import annotations
@@ -14,14 +17,14 @@ from .rigid_fit import RigidTransform, rigid_fit
 from .stabilize_head import Stabilization, stabilize_head
 
 __all__ = [
-    "ConditionedTake",
+    "fill_gaps",
     "FilledMarkers",
-    "RigidTransform",
+    "stabilize_head",
     "Stabilization",
-    "auto_stabilize",
     "bilateral_filter",
     "condition_take",
-    "fill_gaps",
+    "ConditionedTake",
+    "auto_stabilize",
     "rigid_fit",
-    "stabilize_head",
+    "RigidTransform",
 ]

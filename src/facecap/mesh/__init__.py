@@ -1,18 +1,34 @@
-"""Mesh operators: hygiene checks, connected pieces, welding, Laplacian, curvature."""
+"""Mesh operators: hygiene checks, connected pieces, welding, Laplacian, curvature.
+
+In the order a user meets them:
+
+- :func:`check_mesh` (``check_mesh.py``): the defects that make solvers fail
+  on real scans, as a :class:`MeshCheck`.
+- :func:`connected_pieces` (``connected_pieces.py``): which vertices belong together.
+- :func:`weld_duplicate_vertices` (``weld_duplicate_vertices.py``): one vertex
+  per position across UV seams, as a :class:`WeldedMesh`.
+- :func:`laplace_operators` (``laplacian.py``): cotangent Laplacian and mixed
+  Voronoi mass (Meyer et al. 2003), as :class:`LaplaceOperators`.
+- :func:`mean_curvature` (``mean_curvature.py``): per-vertex mean curvature
+  from local quadric fits.
+"""
+
+from __future__ import annotations
 
 from .check_mesh import MeshCheck, check_mesh
 from .connected_pieces import connected_pieces
 from .laplacian import LaplaceOperators, laplace_operators
-from .mean_curvature import mean_curvature
+from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
 
 __all__ = [
-    "LaplaceOperators",
-    "MeshCheck",
-    "WeldedMesh",
     "check_mesh",
+    "MeshCheck",
     "connected_pieces",
-    "laplace_operators",
-    "mean_curvature",
     "weld_duplicate_vertices",
+    "WeldedMesh",
+    "laplace_operators",
+    "LaplaceOperators",
+    "mean_curvature",
+    "DEFAULT_FEATURE_THRESHOLD",
 ]

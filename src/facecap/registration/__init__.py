@@ -1,26 +1,56 @@
-"""Registration of markers and scans: rigid ICP and the marker-to-scan registration of Huang et al. (2011)."""
+"""Registration of markers and scans: rigid ICP and the scan registration of Huang et al. (2011).
+
+In the order a user meets them:
+
+- :func:`register_scans` (``register_scans.py``): every scan of a plan in one
+  template topology (markers, large scale, fine scale, fitted bases), as
+  :class:`RegisteredScans`.
+- :func:`register_markers_to_scan` (``register_markers_to_scan.py``): one
+  frame's markers onto a scan, as a :class:`MarkerRegistration`.
+- :func:`register_template_to_scan` (``register_template_to_scan.py``): the
+  large-scale template registration of section 6.1, as a :class:`TemplateRegistration`.
+- :func:`refine_registration` (``refine_registration.py``): the fine-scale
+  optical-flow registration of section 6.2, as a :class:`Refinement`, on the
+  :func:`cylindrical_map` (``cylindrical_map.py``) unwrap.
+- :func:`rigid_icp` (``rigid_icp.py``): rigid ICP of points onto a surface, as
+  an :class:`IcpResult`.
+
+The functions share their modules' names, so
+``facecap.registration.register_scans`` is the function; reach a module itself
+with ``importlib.import_module``.
+"""
 
 from __future__ import annotations
 
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .refine_registration import Refinement, refine_registration
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
-from .register_scans import RegisteredScans, register_scans
-from .register_template_to_scan import TemplateRegistration, register_template_to_scan
+from .register_scans import (
+    DEFAULT_MARKER_OFFSET_MM,
+    DEFAULT_REST_WEIGHT,
+    TEMPLATE_DEFORMATION_WEIGHT,
+    RegisteredScans,
+    register_scans,
+)
+from .register_template_to_scan import DEFAULT_CLOSEST_POINT_WEIGHTS, TemplateRegistration, register_template_to_scan
 from .rigid_icp import IcpResult, rigid_icp
 
 __all__ = [
-    "CylindricalMap",
-    "IcpResult",
-    "Refinement",
-    "TriangleRaster",
-    "cylindrical_map",
-    "refine_registration",
-    "MarkerRegistration",
-    "RegisteredScans",
-    "TemplateRegistration",
-    "register_markers_to_scan",
     "register_scans",
+    "RegisteredScans",
+    "DEFAULT_MARKER_OFFSET_MM",
+    "DEFAULT_REST_WEIGHT",
+    "TEMPLATE_DEFORMATION_WEIGHT",
+    "register_markers_to_scan",
+    "MarkerRegistration",
     "register_template_to_scan",
+    "TemplateRegistration",
+    "DEFAULT_CLOSEST_POINT_WEIGHTS",
+    "refine_registration",
+    "Refinement",
+    "cylindrical_map",
+    "CylindricalMap",
+    "TriangleRaster",
     "rigid_icp",
+    "IcpResult",
 ]

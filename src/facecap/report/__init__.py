@@ -1,4 +1,16 @@
-"""Evaluation and reports: dense error against ground truth, mesh pictures, time-series plots.
+"""Evaluation and reports: dense error against ground truth, file summaries, mesh pictures, plots.
+
+In the order a user meets them:
+
+- :func:`describe_file` (``describe.py``): what a take, a mesh or a result
+  folder holds (``facecap info``).
+- :func:`evaluate_result`, :func:`read_truth` (``evaluate_result.py``): the
+  dense error of an output folder against a ground-truth file (``facecap evaluate``).
+- :func:`evaluate_performance` (``evaluate_performance.py``): the same on
+  arrays, as :class:`DenseError` with per-region :class:`RegionError`.
+- :func:`render_mesh`, :func:`render_side_by_side` (``render_mesh.py``):
+  headless pictures of a mesh, as :class:`MeshPanel` panels.
+- :func:`plot_series` (``plot_series.py``): per-frame quantities against time.
 
 Imported eagerly (matplotlib is a main dependency): a lazy ``__getattr__`` would
 hand out the *module* ``render_mesh`` instead of the function of the same name
@@ -7,11 +19,16 @@ once anything had imported ``facecap.report.render_mesh`` directly.
 
 from __future__ import annotations
 
+from .describe import describe_file
 from .evaluate_performance import DenseError, RegionError, evaluate_performance
+from .evaluate_result import evaluate_result, read_truth
 from .plot_series import plot_series
 from .render_mesh import MeshPanel, render_mesh, render_side_by_side
 
 __all__ = [
+    "describe_file",
+    "evaluate_result",
+    "read_truth",
     "evaluate_performance",
     "DenseError",
     "RegionError",

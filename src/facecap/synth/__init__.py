@@ -1,36 +1,73 @@
-"""Synthetic ground truth: the bundled ICT face sample and generated capture takes."""
+"""Synthetic ground truth: the bundled ICT face sample and generated capture takes.
+
+In the order a user meets them:
+
+- :func:`load_ict_sample`, :func:`bundled_path` (``ict_sample.py``): the
+  bundled ICT-FaceKit face region and AnimFace take, as an :class:`IctSample`.
+- :func:`generate_performance` (``generate_performance.py``): a take with
+  dense ground truth, as a :class:`SyntheticCase`; :func:`named_curves` picks
+  one of the :data:`CURVE_GENERATORS`, :data:`HEAD_PIVOTS_MM` are the head
+  pivots, :func:`vertex_normals_at` is the normal helper it uses.
+- The weight curves it can drive the face with:
+  :func:`smooth_expression_curves`, :data:`EXPRESSION_PRESETS`
+  (``expression_curves.py``), smooth expressions;
+  :func:`speech_expression_curves`, :data:`VOWEL_VISEMES`,
+  :data:`CONSONANT_VISEMES` (``speech_curves.py``), speech-like visemes;
+  :func:`real_motion_curves`, :func:`load_real_curve_fit`, :class:`RealCurveFit`,
+  :data:`REAL_CURVE_NAMES` (``real_motion_curves.py``), weights fitted to the
+  bundled AnimFace take.
+- :func:`choose_marker_vertices`, :func:`animface_marker_map`,
+  :func:`boundary_vertices` (``marker_layout.py``): where the virtual markers go.
+- :func:`scan_expression` (``scan_expression.py``): an expression "scanned" the
+  way a range scanner would, as a :class:`ScannedExpression`.
+- :func:`write_synthetic_case`, :func:`write_planned_scans`
+  (``write_synthetic_case.py``): a case on disk as a user would hold it
+  (scan, take, map, truth), as :class:`CaseFiles`.
+"""
 
 from __future__ import annotations
 
 from .expression_curves import EXPRESSION_PRESETS, smooth_expression_curves
-from .generate_performance import SyntheticCase, generate_performance
+from .generate_performance import (
+    CURVE_GENERATORS,
+    HEAD_PIVOTS_MM,
+    SyntheticCase,
+    generate_performance,
+    named_curves,
+    vertex_normals_at,
+)
 from .ict_sample import IctSample, bundled_path, load_ict_sample
-from .generate_performance import CURVE_GENERATORS, HEAD_PIVOTS_MM
-from .marker_layout import animface_marker_map, choose_marker_vertices
-from .real_motion_curves import RealCurveFit, load_real_curve_fit, real_motion_curves
+from .marker_layout import animface_marker_map, boundary_vertices, choose_marker_vertices
+from .real_motion_curves import REAL_CURVE_NAMES, RealCurveFit, load_real_curve_fit, real_motion_curves
 from .scan_expression import ScannedExpression, scan_expression
-from .speech_curves import speech_expression_curves
+from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
 from .write_synthetic_case import CaseFiles, write_planned_scans, write_synthetic_case
 
 __all__ = [
+    "load_ict_sample",
+    "bundled_path",
+    "IctSample",
+    "generate_performance",
+    "SyntheticCase",
+    "named_curves",
     "CURVE_GENERATORS",
     "HEAD_PIVOTS_MM",
-    "RealCurveFit",
-    "load_real_curve_fit",
-    "real_motion_curves",
-    "speech_expression_curves",
-    "EXPRESSION_PRESETS",
-    "CaseFiles",
-    "IctSample",
-    "ScannedExpression",
-    "SyntheticCase",
-    "animface_marker_map",
-    "bundled_path",
-    "choose_marker_vertices",
-    "generate_performance",
-    "load_ict_sample",
-    "scan_expression",
+    "vertex_normals_at",
     "smooth_expression_curves",
-    "write_planned_scans",
+    "EXPRESSION_PRESETS",
+    "speech_expression_curves",
+    "VOWEL_VISEMES",
+    "CONSONANT_VISEMES",
+    "real_motion_curves",
+    "load_real_curve_fit",
+    "RealCurveFit",
+    "REAL_CURVE_NAMES",
+    "choose_marker_vertices",
+    "animface_marker_map",
+    "boundary_vertices",
+    "scan_expression",
+    "ScannedExpression",
     "write_synthetic_case",
+    "write_planned_scans",
+    "CaseFiles",
 ]
