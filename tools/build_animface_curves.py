@@ -14,7 +14,7 @@ with ``B = expression_deltas[:, marker_vertices]`` (3M x 53), ``d_t`` the
 displacements, and ``w_ref`` the previous frame's solution; it runs forwards and
 backwards through the take and the two passes are averaged (no lag either way).
 The real actor is not the ICT face, so the residual has a floor: even unbounded,
-unregularised least squares leaves ~1.35 mm RMS (forehead and brows move more on the
+unregularised least squares leaves ~1.34 mm RMS (forehead and brows move more on the
 actor than any ICT shape allows).
 
 Usage::
@@ -75,7 +75,7 @@ def build(out: Path) -> dict:
     B = sample.expression_deltas[:, mv].reshape(len(sample.expression_names), -1).T  # (3M, 53)
     k = B.shape[1]
     A = np.vstack([B, np.sqrt(LAMBDA) * np.eye(k), np.sqrt(MU) * np.eye(k)])
-    W = 0.5 * (_pass(A, d, np.arange(T)) + _pass(A, d, np.arange(T)[::-1]))
+    W = np.clip(0.5 * (_pass(A, d, np.arange(T)) + _pass(A, d, np.arange(T)[::-1])), 0.0, 1.0)  # bvls: -1e-17
     W[0] = 0.0
     residual = np.linalg.norm((W @ B.T - d).reshape(T, M, 3), axis=2)
     zero = np.linalg.norm(D, axis=2)

@@ -175,7 +175,7 @@ def real_motion_curves(
     ``d_t`` the stabilised marker displacements from the rest frame, carried
     into the ICT face frame by a rigid alignment of the rest frame. The
     actor is not the ICT face: the RMS marker residual is 1.85 mm against
-    3.14 mm for w = 0 (1.35 mm for unbounded least squares).
+    3.09 mm for w = 0 (1.34 mm for unbounded least squares).
 
     Examples
     --------

@@ -69,7 +69,7 @@ def speech_expression_curves(
     for 'i'/'e'), scaled by a random stress of 0.5-1.0. Between keys the
     weights ease with the quintic smoothstep, so at 4-6 syllables a second
     the jaw opens and closes within 70-150 ms. A phrase ends by easing back
-    to neutral within 120-200 ms. Stressed syllables (stress > 0.9) raise the
+    to neutral 120-200 ms after its last vowel. Stressed syllables (stress > 0.9) raise the
     brows with probability ``brow_accents``; blinks as in
     :func:`smooth_expression_curves`. Frame 0 and the lead-in are neutral.
 
@@ -163,7 +163,7 @@ def speech_expression_curves(
             if stress > 0.9 and rng.uniform() < brow_accents:
                 accents.append(at)
             at += period
-        at += rng.uniform(0.12, 0.2)  # back to rest at the end of the phrase
+        at = key_times[-1] + rng.uniform(0.12, 0.2)  # back to rest 120-200 ms after the phrase's last vowel
         key_times.append(at)
         key_values.append(np.zeros(len(shapes)))
         at += rng.uniform(*pause_s)
