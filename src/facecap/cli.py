@@ -32,7 +32,9 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
         "and drive a linear thin shell at the scan's full resolution.",
     )
     p.add_argument("--scan", required=True, help="face scan: .obj, .ply or .glb")
-    p.add_argument("--scan-units", default="mm", help="length unit of the scan file (files do not say): mm, cm, m, in [mm]")
+    p.add_argument("--scan-units", default="mm",
+                   help="length unit of the scan file (files do not say): mm, cm, m, in, or auto (the unit the "
+                        "markers' size suggests, with a notice); a unit the markers' size contradicts stops [mm]")
     p.add_argument("--markers", required=True, help="mocap take: .c3d, .trc or .csv")
     p.add_argument("--marker-units", default=None, help="override the unit the marker file declares")
     p.add_argument("--map", required=True, help="JSON map: marker label -> scan vertex index or 3D point")
@@ -60,10 +62,14 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
     from .io.read_mesh import read_mesh
+    from .units import check_take_units
 
-    scan = read_mesh(args.scan, unit=args.scan_units)
+    auto = args.scan_units.strip().lower() == "auto"
+    scan = read_mesh(args.scan, unit=None if auto else args.scan_units)
     take = read_markers(args.markers, unit=args.marker_units)
     corr = read_correspondence(args.map, scan)
+    if auto:
+        scan = check_take_units(scan, take, corr, rest_frame=args.rest_frame, convert=True)
     stabilize = _stabilize_option(args.stabilize)
     exports = _exports_option(args.export)
     if args.batch_frames < 1:
@@ -175,9 +181,9 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--plan", required=True, help="plan.json from plan-scans")
     p.add_argument("--markers", required=True, help="the take the plan was made from")
     p.add_argument("--scans", required=True, nargs="+", help="one scan per planned frame, in the plan's order")
-    p.add_argument("--scan-units", default="mm", help="length unit of the scan files [mm]")
+    p.add_argument("--scan-units", default="mm", help="length unit of the scan files: mm, cm, m, in or auto [mm]")
     p.add_argument("--template", default=None, help="mesh giving the output topology (default: the first scan)")
-    p.add_argument("--template-units", default="mm", help="length unit of the template file [mm]")
+    p.add_argument("--template-units", default="mm", help="length unit of the template file: mm, cm, m, in or auto [mm]")
     p.add_argument("--marker-offset", type=float, default=1.5, help="marker centre height above the skin, mm [1.5]")
     p.add_argument("--refine", action="store_true",
                    help="run the fine-scale (optical flow) registration of section 6.2 (experimental)")

@@ -24,6 +24,7 @@ from ..io.registered_scans import read_registered_scans, write_registered_scans
 from ..io.scan_plan import read_scan_plan, write_scan_plan
 from ..markers.condition_take import ConditionedTake, condition_take
 from ..structures import MarkerSequence, Mesh
+from ..units import check_scan_units
 from .reconstruct_performance import blend_weights, write_blended_performance
 from .select_scan_frames import ScanPlan, select_scan_frames
 
@@ -117,6 +118,11 @@ def register_planned_scans(
 ) -> dict[str, Any]:
     """Register one scan per planned frame and write the bases folder.
 
+    ``scan_unit`` and ``template_unit`` are length units, or ``'auto'``: each
+    file's size is compared with its frame's markers
+    (:func:`facecap.units.check_scan_units`); a given unit they contradict
+    stops with an error naming the likely one, ``'auto'`` converts to it.
+
     Returns the registration report (also in ``bases.json``).
     """
     from ..registration.register_scans import register_scans
@@ -129,8 +135,13 @@ def register_planned_scans(
                          "(one scan per planned frame, in the plan's order)")
     conditioning = plan["conditioning"]
     conditioned = _condition(take, conditioning)
-    scans = [read_mesh(p, unit=scan_unit) for p in scan_paths]
-    template: Mesh | None = read_mesh(template_path, unit=template_unit) if template_path else None
+    auto, auto_template = scan_unit == "auto", template_unit == "auto"  # else a contradicted unit stops
+    scans = [check_scan_units(read_mesh(p, unit=None if auto else scan_unit), conditioned.positions[f], convert=auto)
+             for p, f in zip(scan_paths, frames)]
+    template: Mesh | None = check_scan_units(
+        read_mesh(template_path, unit=None if auto_template else template_unit),
+        conditioned.positions[int(conditioning.get("rest_frame", 0))], convert=auto_template, option="--template-units",
+    ) if template_path else None
     t = time.perf_counter()
     registered = register_scans(
         scans, conditioned.positions[frames], template=template,

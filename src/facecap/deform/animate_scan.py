@@ -19,6 +19,7 @@ from ..markers.condition_take import condition_take
 from ..markers.rigid_fit import rigid_fit
 from ..mesh.check_mesh import check_mesh
 from ..structures import MarkerSequence, Mesh
+from ..units import check_take_units
 from .basis_product import Precision
 from .factor_spd import Backend
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces
@@ -243,7 +244,15 @@ def animate_scan(
     Returns
     -------
     AnimationResult
+
+    Raises
+    ------
+    MeshError
+        If the scan's size disagrees with the markers' by a length unit (a
+        scan in metres read as mm), naming the likely unit; see
+        :func:`facecap.units.check_take_units`, which can also convert.
     """
+    check_take_units(scan, markers, correspondence, rest_frame=rest_frame)
     timings: dict[str, float] = {}
     caught: list[str] = []
 
