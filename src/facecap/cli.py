@@ -44,7 +44,8 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--kb", type=float, default=DEFAULT_KB_MM2, help=f"bending stiffness in mm^2 [{DEFAULT_KB_MM2}]")
     p.add_argument(
         "--stabilize", default="off",
-        help="remove rigid head motion: 'off', 'auto' (find stable markers) or comma-separated labels [off]",
+        help="remove rigid head motion: 'off', 'auto' (find stable markers), 'consensus' (no head band: "
+             "per frame, the pose most markers agree on) or comma-separated labels [off]",
     )
     p.add_argument("--no-smooth", action="store_true", help="skip the spatio-temporal bilateral filter")
     p.add_argument("--export", default="", help="extra exports, comma-separated: obj, ply, usd")
@@ -158,11 +159,13 @@ def _exports_option(text: str) -> list[str]:
     return [e.strip().lower() for e in text.split(",") if e.strip()]
 
 
-def _stabilize_option(value: str) -> bool | list[str]:
+def _stabilize_option(value: str) -> bool | str | list[str]:
     if value in ("off", "none", "no"):
         return False
     if value == "auto":
         return True
+    if value == "consensus":
+        return "consensus"
     return [s.strip() for s in value.split(",") if s.strip()]
 
 
@@ -173,7 +176,9 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
                    help="reconstruction tolerance, fraction of the marker bounding-box diagonal [0.003]")
     p.add_argument("--max-scans", type=int, default=None, help="stop after this many scans")
     p.add_argument("--rest-frame", type=int, default=0, help="frame stabilisation aligns to [0]")
-    p.add_argument("--stabilize", default="auto", help="'auto', 'off' or comma-separated labels [auto]")
+    p.add_argument("--stabilize", default="auto",
+                   help="'auto', 'consensus' (no head band: the pose most markers agree on), 'off' or "
+                        "comma-separated labels [auto]")
     p.add_argument("--out", required=True, help="plan.json to write (the plot goes beside it)")
     p.set_defaults(func=_cmd_plan_scans)
 

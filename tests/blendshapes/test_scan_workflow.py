@@ -56,6 +56,23 @@ def test_plan_register_blend(workflow):
     assert err < 0.5 * neutral
     lines = (root / "blend" / "weights.csv").read_text().splitlines()
     assert len(lines) == 151 and lines[0].startswith("frame,time_s,basis_0_frame_")
+    # the head motion is kept beside the stabilised vertices, as animate keeps it: applied, the blend
+    # follows the moving head (4 degrees of sway here) as closely as it follows the expression
+    info = json.loads((root / "blend" / "performance.json").read_text())
+    motion = np.load(root / "blend" / "head_motion.npy")
+    assert info["stabilized"] and motion.shape == (150, 4, 4)
+    from facecap.report.evaluate_result import evaluate_result
+
+    world = evaluate_result(files.truth, root / "blend").mean_mm
+    ignored = np.linalg.norm(V - (case.truth_vertices @ np.swapaxes(case.head_pose[:, :3, :3], 1, 2)
+                                  + case.head_pose[:, None, :3, 3]), axis=2).mean()
+    assert world < 0.3 * ignored, (world, ignored)
+    # one conditioning: plan-scans wrote it once, the bases carry it, and blend used it
+    assert (root / "plan.conditioned.npz").is_file() and (root / "bases" / "conditioned_take.npz").is_file()
+    # every basis has a quality figure a user without truth can read
+    for scan in report["scans"]:
+        quality = scan["quality"]
+        assert quality["marker_residual_mm"]["mean"] < 1.0 and quality["tangential_motion_mm"] >= 0
 
 
 def test_bad_inputs_are_clear_errors(workflow, capsys):

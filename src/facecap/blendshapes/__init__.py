@@ -12,8 +12,10 @@ In the order a user meets them:
   deformed to match their frame's markers exactly (section 7).
 - :func:`nnls_weights` (``nnls_weights.py``): non-negative weights of many
   frames at once (eqs. 3 and 12), as :class:`NnlsWeights`.
-- :func:`blend_weights`, :func:`write_blended_performance`
-  (``reconstruct_performance.py``): the dense performance from bases and weights.
+- :func:`blend_weights`, :func:`blend_weights_with_head_pose` (the weights and
+  each frame's head pose solved together, as :class:`BlendWithPose`),
+  :func:`write_blended_performance` (``reconstruct_performance.py``): the dense
+  performance from bases and weights.
 
 The scan registration itself lives in :mod:`facecap.registration`.
 """
@@ -22,19 +24,27 @@ from __future__ import annotations
 
 from .fit_bases_to_markers import fit_bases_to_markers
 from .nnls_weights import NnlsWeights, nnls_weights
-from .reconstruct_performance import blend_weights, write_blended_performance
-from .scan_workflow import blend_take, plan_scans, register_planned_scans
+from .reconstruct_performance import (
+    BlendWithPose,
+    blend_weights,
+    blend_weights_with_head_pose,
+    write_blended_performance,
+)
+from .scan_workflow import blend_take, conditioned_take_path, plan_scans, register_planned_scans
 from .select_scan_frames import ScanPlan, select_scan_frames
 
 __all__ = [
     "plan_scans",
     "register_planned_scans",
     "blend_take",
+    "conditioned_take_path",
     "select_scan_frames",
     "ScanPlan",
     "fit_bases_to_markers",
     "nnls_weights",
     "NnlsWeights",
     "blend_weights",
+    "blend_weights_with_head_pose",
+    "BlendWithPose",
     "write_blended_performance",
 ]

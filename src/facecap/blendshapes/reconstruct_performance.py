@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, NamedTuple
 
 import numpy as np
 
@@ -12,7 +12,14 @@ from ..io.write_performance import PerformanceWriter
 from ..structures import Mesh
 from .nnls_weights import nnls_weights
 
-__all__ = ["blend_weights", "write_blended_performance"]
+__all__ = ["BlendWithPose", "blend_weights", "blend_weights_with_head_pose", "write_blended_performance"]
+
+DEFAULT_POSE_ITERATIONS = 4
+"""Steps of :func:`blend_weights_with_head_pose` (each removes the remaining rotation to second order)."""
+
+SUM_TO_ONE_WEIGHT_MM2 = 1e4
+"""Weight of ``(sum w - 1)^2`` per marker in :func:`blend_weights_with_head_pose`, mm^2: a sum off by 0.01
+costs as much as every marker off by 1 mm."""
 
 
 def blend_weights(basis_markers: np.ndarray, markers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -45,6 +52,112 @@ def blend_weights(basis_markers: np.ndarray, markers: np.ndarray) -> tuple[np.nd
     return weights.T, residual / np.sqrt(seen.sum())
 
 
+class BlendWithPose(NamedTuple):
+    """Result of :func:`blend_weights_with_head_pose`.
+
+    Attributes
+    ----------
+    weights : (T, K) float64 array, >= 0
+    residual_mm : (T,) float64 array
+        RMS marker distance of the blended markers to the corrected ones.
+    rotations : (T, 3, 3) float64 array
+        Per-frame rigid correction applied to the markers (``x' = R x + t``),
+        on top of the take's stabilisation.
+    translations : (T, 3) float64 array, mm
+    """
+
+    weights: np.ndarray
+    residual_mm: np.ndarray
+    rotations: np.ndarray
+    translations: np.ndarray
+
+
+def blend_weights_with_head_pose(
+    basis_markers: np.ndarray,
+    markers: np.ndarray,
+    *,
+    iterations: int = DEFAULT_POSE_ITERATIONS,
+) -> BlendWithPose:
+    """Blend weights and each frame's head pose, solved together (eq. 12 with a rigid motion).
+
+    The stabilisation of a take without a head band comes from skin markers
+    that move with the expression, so it leaves each frame slightly turned.
+    The bases know better: a rigid motion is not in their span (they share
+    one head pose), so a frame's markers are fitted by a blend *and* a rigid
+    motion, ``min_{R, t, w >= 0} sum_i |R x_i + t - sum_k w_k b_ki|^2``.
+
+    Parameters
+    ----------
+    basis_markers : (K, M, 3) float array, mm
+        The markers of each basis.
+    markers : (T, M, 3) float array, mm
+        Conditioned (stabilised) markers of every frame, in the bases' frame.
+    iterations : int, default 4
+        Steps of weights (exact NNLS, all frames at once) then rigid motion
+        (Kabsch, all frames at once); see Notes.
+
+    Returns
+    -------
+    BlendWithPose
+
+    Notes
+    -----
+    Variable projection: the rigid motions of the bases' mean marker set
+    ``c`` span, to first order, ``J = [[-[c_i]x, I]]`` (3M x 6). Projecting
+    both the bases and each frame's markers onto the complement of ``J``
+    leaves a problem in the weights alone, solved exactly for all frames at
+    once (NNLS with a shared matrix), with a row ``sqrt(lambda) (sum w - 1)``
+    holding the weights' sum at one as the paper's uncentred markers do
+    implicitly (the projection removes the translation that did it). The
+    frame's exact rigid motion onto its blend then follows by a Kabsch fit,
+    the markers are moved by it, and the step repeats; each step removes the
+    remaining rotation to second order, so three or four suffice (the plain
+    alternation of the two blocks needs dozens).
+    """
+    from ..markers.rigid_fit import rigid_fit
+
+    Xb = np.asarray(basis_markers, dtype=np.float64)
+    X = np.asarray(markers, dtype=np.float64)
+    if Xb.ndim != 3 or X.ndim != 3 or Xb.shape[1:] != X.shape[1:]:
+        raise InputError(f"markers: expected (T, M, 3) matching the bases' (K, M, 3), got {X.shape} and {Xb.shape}")
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 1:
+        raise InputError(f"iterations: expected an integer >= 1, got {iterations!r}")
+    seen = np.all(np.isfinite(X), axis=(0, 2)) & np.all(np.isfinite(Xb), axis=(0, 2))
+    if seen.sum() < 3:
+        raise InputError("fewer than 3 markers are seen in every frame and every basis")
+    B = Xb[:, seen]  # (K, m, 3)
+    Y = X[:, seen]  # (T, m, 3)
+    T, m = Y.shape[0], Y.shape[1]
+    centre = B.reshape(-1, 3).mean(axis=0)
+    c = B.mean(axis=0) - centre  # mean marker set about its centroid
+    J = np.zeros((m, 3, 6))
+    J[:, :, 3:] = np.eye(3)
+    J[:, 0, 1], J[:, 0, 2] = c[:, 2], -c[:, 1]  # -[c]x: d/dw of w x c
+    J[:, 1, 0], J[:, 1, 2] = -c[:, 2], c[:, 0]
+    J[:, 2, 0], J[:, 2, 1] = c[:, 1], -c[:, 0]
+    Q, _ = np.linalg.qr(J.reshape(3 * m, 6))
+
+    def project(V: np.ndarray) -> np.ndarray:  # (3m, n) -> complement of the rigid motions
+        return V - Q @ (Q.T @ V)
+
+    scale = np.sqrt(SUM_TO_ONE_WEIGHT_MM2 * m)
+    A = np.vstack([project((B - centre).reshape(B.shape[0], -1).T), np.full((1, B.shape[0]), scale)])
+    R = np.tile(np.eye(3), (T, 1, 1))
+    t = np.zeros((T, 3))
+    Bflat = B.reshape(B.shape[0], -1)
+    for _ in range(iterations):
+        moved = Y @ np.swapaxes(R, 1, 2) + t[:, None]
+        targets = np.vstack([project((moved - centre).reshape(T, -1).T), np.full((1, T), scale)])
+        weights = nnls_weights(A, targets).weights.T  # (T, K)
+        blended = (weights @ Bflat).reshape(T, m, 3) + (1.0 - weights.sum(axis=1))[:, None, None] * centre
+        fit = rigid_fit(Y, blended)
+        R, t = fit.rotation, fit.translation
+    moved = Y @ np.swapaxes(R, 1, 2) + t[:, None]
+    blended = (weights @ Bflat).reshape(T, m, 3) + (1.0 - weights.sum(axis=1))[:, None, None] * centre
+    residual = np.sqrt(np.mean(np.sum((moved - blended) ** 2, axis=2), axis=1))
+    return BlendWithPose(weights, residual, R, t)
+
+
 def write_blended_performance(
     out_dir: str | Path,
     template: Mesh,
@@ -53,6 +166,7 @@ def write_blended_performance(
     *,
     rate: float,
     output_from_bases: np.ndarray | None = None,
+    head_motion: np.ndarray | None = None,
     exports: Iterable[str] = (),
     metadata: dict[str, Any] | None = None,
     extra_files: dict[str, Any] | None = None,
@@ -79,6 +193,11 @@ def write_blended_performance(
         own coordinates). The bases are moved by it and blended about their
         centroid, so weights that do not sum to one scale the face about its
         middle, not about either frame's origin.
+    head_motion : (T, 4, 4) float array, optional
+        The head's rigid motion per frame in the output frame (mm), as
+        ``facecap animate`` writes it: saved as ``head_motion.npy`` (in the
+        template's unit) and carried by the USD export as the mesh's
+        transform. The vertices stay stabilised.
     exports : iterable of {'obj', 'ply', 'usd'}
     metadata : dict, optional
         Added to ``performance.json``.
@@ -116,11 +235,20 @@ def write_blended_performance(
         np.matmul(W[start:stop], flat, out=out.reshape(stop - start, n * 3))
         out += centre
 
+    pose = None
+    if head_motion is not None:
+        pose = np.asarray(head_motion, dtype=np.float64)
+        if pose.shape != (T, 4, 4) or not np.all(np.isfinite(pose)):
+            raise InputError(f"head_motion: expected finite ({T}, 4, 4) transforms, got {pose.shape}")
     with PerformanceWriter(out_dir, mesh=template, rate=rate, n_frames=T, exports=exports) as writer:
-        writer.stream(compute, batch_frames=batch_frames, progress=progress, desc="blend")
+        writer.stream(compute, batch_frames=batch_frames, head_pose=pose, progress=progress, desc="blend")
+        if pose is not None:
+            in_unit = pose.copy()
+            in_unit[:, :3, 3] = template.to_source_unit(in_unit[:, :3, 3])
+            np.save(writer.path("head_motion.npy"), in_unit)
         for name, content in (extra_files or {}).items():
             if name.endswith(".npy"):
                 np.save(writer.path(name), content)
             else:
                 writer.path(name).write_text(str(content))
-        return writer.finish({"method": "huang2011-blendshapes", **(metadata or {})})
+        return writer.finish({"method": "huang2011-blendshapes", "stabilized": pose is not None, **(metadata or {})})

@@ -18,25 +18,55 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import InputError
+from ..io.conditioned_take import file_sha256, read_conditioned_take, write_conditioned_take
 from ..io.read_markers import read_markers
 from ..io.read_mesh import read_mesh
-from ..io.registered_scans import read_registered_scans, write_registered_scans
+from ..io.registered_scans import CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
 from ..io.scan_plan import read_scan_plan, write_scan_plan
-from ..markers.condition_take import ConditionedTake, condition_take
+from ..markers.condition_take import DEFAULT_HEAD_MOTION_SIGMA_S, ConditionedTake, condition_take
 from ..structures import MarkerSequence, Mesh
 from ..units import check_scan_units
-from .reconstruct_performance import blend_weights, write_blended_performance
+from .reconstruct_performance import blend_weights_with_head_pose, write_blended_performance
 from .select_scan_frames import ScanPlan, select_scan_frames
 
-__all__ = ["plan_scans", "register_planned_scans", "blend_take"]
+__all__ = ["plan_scans", "register_planned_scans", "blend_take", "conditioned_take_path"]
+
+
+def conditioned_take_path(plan_path: str | Path) -> Path:
+    """Where ``plan-scans`` keeps the conditioned take of ``plan_path``: ``plan.json`` -> ``plan.conditioned.npz``."""
+    p = Path(plan_path)
+    return p.with_name(f"{p.stem}.conditioned.npz")
 
 
 def _condition(take: MarkerSequence, conditioning: dict[str, Any]) -> ConditionedTake:
-    stable = conditioning.get("stable_markers") or False
+    """Condition ``take`` as ``conditioning`` (a plan's record) says."""
+    stabilize = conditioning.get("stabilize")
+    if stabilize is None:  # plans written before the consensus stabiliser: replay the fixed set
+        stabilize = conditioning.get("stable_markers") or False
+    elif stabilize == "auto":
+        stabilize = True
+    elif stabilize == "off":
+        stabilize = False
     return condition_take(
-        take, rest_frame=int(conditioning.get("rest_frame", 0)), stabilize=stable,
+        take, rest_frame=int(conditioning.get("rest_frame", 0)), stabilize=stabilize,
         smooth=bool(conditioning.get("smooth", True)),
+        head_motion_sigma_s=float(conditioning.get("head_motion_sigma_s", DEFAULT_HEAD_MOTION_SIGMA_S)),
     )
+
+
+def _conditioned_take(take: MarkerSequence, markers_path: str | Path, conditioning: dict[str, Any],
+                      saved: Path) -> ConditionedTake:
+    """The take as the plan conditioned it: read from ``saved`` when it is the same take, else redone.
+
+    Conditioning once keeps every step on the same markers and head motion. A
+    different take (another take of the actor, or an edited file) is
+    conditioned afresh with the plan's recorded settings.
+    """
+    if saved.is_file() and conditioning.get("source_sha256") == file_sha256(markers_path):
+        conditioned, meta = read_conditioned_take(saved)
+        if meta["labels"] == tuple(take.labels) and conditioned.positions.shape[0] == take.n_frames:
+            return conditioned
+    return _condition(take, conditioning)
 
 
 def plan_scans(
@@ -46,7 +76,7 @@ def plan_scans(
     tolerance: float = 0.003,
     max_frames: int | None = None,
     rest_frame: int = 0,
-    stabilize: bool | Sequence[str] = True,
+    stabilize: bool | str | Sequence[str] = True,
     smooth: bool = True,
     plot_path: str | Path | None = None,
     marker_unit: str | None = None,
@@ -80,12 +110,28 @@ def plan_scans(
     ScanPlan
     """
     take = read_markers(markers_path, unit=marker_unit)
-    conditioned = condition_take(take, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth)
+    if stabilize is True:
+        stabilize_setting: str | list[str] = "auto"
+    elif stabilize is False:
+        stabilize_setting = "off"
+    elif isinstance(stabilize, str):
+        stabilize_setting = stabilize
+    else:
+        stabilize_setting = list(stabilize)
+    conditioning: dict[str, Any] = {
+        "rest_frame": rest_frame, "stabilize": stabilize_setting, "smooth": smooth,
+        "head_motion_sigma_s": DEFAULT_HEAD_MOTION_SIGMA_S,
+    }
+    conditioned = _condition(take, conditioning)
     plan = select_scan_frames(
         conditioned.positions, tolerance=tolerance, max_frames=max_frames, rate=take.rate,
         first_frame=take.first_frame, progress=progress,
     )
-    conditioning = {"rest_frame": rest_frame, "stable_markers": list(conditioned.stable_labels), "smooth": smooth}
+    saved = conditioned_take_path(plan_path)
+    conditioning.update(stable_markers=list(conditioned.stable_labels), conditioned_take=saved.name,
+                        source_sha256=file_sha256(markers_path))
+    write_conditioned_take(saved, conditioned, labels=take.labels, rate=take.rate, settings=conditioning,
+                           source_sha256=conditioning["source_sha256"])
     write_scan_plan(plan_path, plan.to_dict(), conditioning=conditioning, source=str(markers_path))
     if plot_path is not None:
         from ..report import plot_series
@@ -134,7 +180,7 @@ def register_planned_scans(
         raise InputError(f"--scans: the plan lists {len(frames)} frames, {len(scan_paths)} scans were given "
                          "(one scan per planned frame, in the plan's order)")
     conditioning = plan["conditioning"]
-    conditioned = _condition(take, conditioning)
+    conditioned = _conditioned_take(take, markers_path, conditioning, conditioned_take_path(plan_path))
     auto, auto_template = scan_unit == "auto", template_unit == "auto"  # else a contradicted unit stops
     scans = [check_scan_units(read_mesh(p, unit=None if auto else scan_unit), conditioned.positions[f], convert=auto)
              for p, f in zip(scan_paths, frames)]
@@ -154,6 +200,7 @@ def register_planned_scans(
         out_dir, template=registered.template, bases=registered.bases, basis_markers=registered.basis_markers,
         marker_labels=list(take.labels), output_from_mocap=registered.output_from_mocap,
         plan={**plan, "markers": str(markers_path)}, report=report,
+        conditioned=conditioned, rate=take.rate,
     )
     return report
 
@@ -179,26 +226,55 @@ def blend_take(
     if missing:
         raise InputError(f"the take lacks markers the bases were made with: {missing}", path=str(markers_path))
     take = take.select(labels)
-    conditioned = _condition(take, folder["plan"]["conditioning"])
+    conditioning = folder["plan"]["conditioning"]
+    conditioned = _conditioned_take(take, markers_path, conditioning, Path(bases_dir) / CONDITIONED_TAKE_FILE)
     t = time.perf_counter()
-    weights, residual = blend_weights(folder["basis_markers"], conditioned.positions)
+    blend = blend_weights_with_head_pose(folder["basis_markers"], conditioned.positions)
+    weights, residual = blend.weights, blend.residual_mm
+    head_motion = _head_motion(conditioned, blend.rotations, blend.translations, folder["output_from_mocap"])
     frames = folder["plan"]["frames"]
     header = "frame,time_s," + ",".join(f"basis_{i}_frame_{f}" for i, f in enumerate(frames))
     rows = [f"{t_},{t_ / take.rate:.6f}," + ",".join(f"{w:.6g}" for w in weights[t_]) for t_ in range(len(weights))]
+    correction_deg = np.degrees(np.arccos(np.clip((np.trace(blend.rotations, axis1=1, axis2=2) - 1) / 2, -1, 1)))
     report = {
         "n_frames": int(take.n_frames),
         "n_bases": int(weights.shape[1]),
         "marker_residual_mm": {"per_frame": residual.tolist(), "mean": float(residual.mean()),
                                "max": float(residual.max())},
+        "head_pose_correction": {
+            "about": "rigid correction of each frame's stabilisation found jointly with the weights",
+            "rotation_deg": {"median": float(np.median(correction_deg)), "max": float(correction_deg.max())},
+            "translation_mm": {"median": float(np.median(np.linalg.norm(blend.translations, axis=1))),
+                               "max": float(np.linalg.norm(blend.translations, axis=1).max())},
+        },
         "weights_s": time.perf_counter() - t,
     }
     write_blended_performance(
         out_dir, folder["template"], folder["bases"], weights, rate=take.rate,
-        output_from_bases=folder["output_from_mocap"], exports=exports, progress=progress,
+        output_from_bases=folder["output_from_mocap"], head_motion=head_motion, exports=exports, progress=progress,
         metadata={"source_files": {"bases": str(bases_dir), "markers": str(markers_path)},
-                  "rest_frame": int(folder["plan"]["conditioning"].get("rest_frame", 0)), "stabilized": True,
-                  "planned_frames": frames},
+                  "rest_frame": int(conditioning.get("rest_frame", 0)), "planned_frames": frames},
         extra_files={"weights.npy": weights, "weights.csv": header + "\n" + "\n".join(rows) + "\n",
                      "bases.npy": folder["bases"], "blend_report.json": json.dumps(report, indent=1)},
     )
     return report
+
+
+def _head_motion(conditioned: ConditionedTake, rotations: np.ndarray, translations: np.ndarray,
+                 output_from_mocap: np.ndarray) -> np.ndarray | None:
+    """Head motion per frame in the output (template) frame, mm: ``A (J_t S_t)^-1 A^-1``.
+
+    ``S_t`` is the take's stabilisation (mocap -> its rest pose), ``J_t`` the
+    blend's rigid correction of it and ``A`` the mocap -> template transform;
+    with no stabilisation ``S_t`` is the identity and the correction alone is
+    the head motion.
+    """
+    T = rotations.shape[0]
+    S = np.tile(np.eye(4), (T, 1, 1))
+    if conditioned.head_rotations is not None:
+        S[:, :3, :3], S[:, :3, 3] = conditioned.head_rotations, conditioned.head_translations
+    J = np.tile(np.eye(4), (T, 1, 1))
+    J[:, :3, :3], J[:, :3, 3] = rotations, translations
+    A = np.asarray(output_from_mocap, dtype=np.float64)
+    pose = A[None] @ np.linalg.inv(J @ S) @ np.linalg.inv(A)[None]
+    return pose if np.all(np.isfinite(pose)) else None

@@ -16,7 +16,9 @@ In the order a user meets them:
 - :func:`write_scan_plan` / :func:`read_scan_plan` (``scan_plan.py``) and
   :func:`write_registered_scans` / :func:`read_registered_scans`
   (``registered_scans.py``): the files of the scan workflow (``plan.json``, the
-  bases folder).
+  bases folder); :func:`write_conditioned_take` / :func:`read_conditioned_take`
+  (``conditioned_take.py``): the take conditioned once by ``plan-scans`` and read
+  by the later steps, with :func:`file_sha256` to tell it is the same take.
 
 The functions share their modules' names, so ``facecap.io.read_mesh`` is the
 function; reach a module itself with ``importlib.import_module``.
@@ -27,7 +29,8 @@ from __future__ import annotations
 from .read_correspondence import Correspondence, CorrespondenceMatch, match_correspondence, read_correspondence
 from .read_markers import read_markers
 from .read_mesh import read_mesh
-from .registered_scans import BASES_MARKER_FILE, read_registered_scans, write_registered_scans
+from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditioned_take, write_conditioned_take
+from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
 from .write_mesh import write_mesh
@@ -53,4 +56,9 @@ __all__ = [
     "write_registered_scans",
     "read_registered_scans",
     "BASES_MARKER_FILE",
+    "CONDITIONED_TAKE_FILE",
+    "write_conditioned_take",
+    "read_conditioned_take",
+    "CONDITIONED_TAKE_FORMAT",
+    "file_sha256",
 ]

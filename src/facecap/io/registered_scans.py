@@ -10,13 +10,17 @@ import numpy as np
 
 from ..errors import FileFormatError
 from ..structures import Mesh
+from ..markers.condition_take import ConditionedTake
 from ._atomic import atomic_folder
+from .conditioned_take import write_conditioned_take
 from .read_mesh import read_mesh
 from .write_mesh import write_mesh
 
-__all__ = ["write_registered_scans", "read_registered_scans", "BASES_MARKER_FILE"]
+__all__ = ["write_registered_scans", "read_registered_scans", "BASES_MARKER_FILE", "CONDITIONED_TAKE_FILE"]
 
 BASES_MARKER_FILE = "bases.json"
+CONDITIONED_TAKE_FILE = "conditioned_take.npz"
+"""The plan's conditioned take, kept with the bases so ``blend`` sees the markers the bases were fitted to."""
 
 
 def write_registered_scans(
@@ -29,6 +33,8 @@ def write_registered_scans(
     output_from_mocap: np.ndarray,
     plan: dict[str, Any],
     report: dict[str, Any],
+    conditioned: ConditionedTake | None = None,
+    rate: float | None = None,
 ) -> Path:
     """Write the registered bases folder atomically.
 
@@ -36,7 +42,9 @@ def write_registered_scans(
     ``bases.npy`` (K, n, 3) float32 mm in the stabilised mocap frame,
     ``basis_markers.npy`` (K, M, 3) mm, ``output_from_mocap.npy`` (4, 4),
     ``bases.json`` (marker labels, template unit, the plan and its
-    conditioning, the registration report).
+    conditioning, the registration report) and, when given, the conditioned
+    take (``conditioned_take.npz``, see :mod:`facecap.io.conditioned_take`;
+    ``rate`` is then required).
     """
     with atomic_folder(out_dir, marker_file=BASES_MARKER_FILE) as stage:
         write_mesh(template, stage / "template.obj")
@@ -51,6 +59,11 @@ def write_registered_scans(
             "plan": plan,
             "report": report,
         }
+        if conditioned is not None:
+            conditioning = plan.get("conditioning", {})
+            write_conditioned_take(stage / CONDITIONED_TAKE_FILE, conditioned, labels=list(marker_labels),
+                                   rate=float(rate), settings=conditioning,
+                                   source_sha256=conditioning.get("source_sha256"))
         (stage / BASES_MARKER_FILE).write_text(json.dumps(info, indent=1, default=float))
     return Path(out_dir)
 

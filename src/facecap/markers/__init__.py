@@ -4,14 +4,17 @@ The usual order for a raw take is :func:`fill_gaps` (``fill_gaps.py``),
 :func:`stabilize_head` (``stabilize_head.py``), then :func:`bilateral_filter`
 (``bilateral_filter.py``) on the stabilised positions; :func:`condition_take`
 (``condition_take.py``) runs them in that order, and :func:`auto_stabilize`
-finds the markers that stay rigid. :func:`rigid_fit` (``rigid_fit.py``) is the
+uses a head band when it is rigid, else :func:`consensus_stabilize`
+(``consensus_stabilize.py``: per frame, the rigid motion most skin markers
+agree on; :func:`estimate_marker_noise` measures the noise it scales by). :func:`rigid_fit` (``rigid_fit.py``) is the
 batched, NaN-aware Kabsch fit they share, returning a :class:`RigidTransform`.
 """
 
 from __future__ import annotations
 
 from .bilateral_filter import bilateral_filter
-from .condition_take import ConditionedTake, auto_stabilize, condition_take
+from .condition_take import DEFAULT_HEAD_MOTION_SIGMA_S, ConditionedTake, auto_stabilize, condition_take
+from .consensus_stabilize import consensus_stabilize, estimate_marker_noise
 from .fill_gaps import FilledMarkers, fill_gaps
 from .rigid_fit import RigidTransform, rigid_fit
 from .stabilize_head import Stabilization, stabilize_head
@@ -25,6 +28,9 @@ __all__ = [
     "condition_take",
     "ConditionedTake",
     "auto_stabilize",
+    "consensus_stabilize",
+    "estimate_marker_noise",
+    "DEFAULT_HEAD_MOTION_SIGMA_S",
     "rigid_fit",
     "RigidTransform",
 ]

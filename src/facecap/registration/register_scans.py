@@ -74,6 +74,24 @@ def _to_mocap(mesh: Mesh, reg: MarkerRegistration) -> Mesh:
     return mesh.with_vertices(V)
 
 
+def _surface_motion(template: Mesh, registered: np.ndarray, matched: np.ndarray) -> tuple[list[float], list[float]]:
+    """Mean tangential and normal motion (mm) of each registered scan from the template, over matched vertices.
+
+    Both are in the (stabilised) frame the template and the bases share, so a
+    pose error of a basis shows as motion too.
+    """
+    normals = igl.per_vertex_normals(template.vertices, template.faces)
+    slide, lift = [], []
+    for i in range(registered.shape[0]):
+        d = registered[i] - template.vertices
+        along = np.einsum("nc,nc->n", d, normals)
+        tangential = np.linalg.norm(d - along[:, None] * normals, axis=1)
+        keep = matched[i] & np.isfinite(tangential)
+        slide.append(float(tangential[keep].mean()) if keep.any() else float("nan"))
+        lift.append(float(np.abs(along[keep]).mean()) if keep.any() else float("nan"))
+    return slide, lift
+
+
 def register_scans(
     scans: Sequence[Mesh],
     frame_markers: np.ndarray,
@@ -242,8 +260,20 @@ def register_scans(
     skin_targets = X[:, fit_rows] - marker_offset_mm * marker_normals
     bases, change = fit_bases_to_markers(registered, template.faces, mv, mw, skin_targets)
     timings["fit_bases_s"] = time.perf_counter() - t
+    slide, lift = _surface_motion(tmpl_mocap, registered, matched)
     for i in range(K):
         report["scans"][i]["basis_fit_change_mm"] = float(np.mean(change[i]))
+        # Readable without truth: how well the registered surface already agreed with its frame's
+        # markers before section 7 forced them (a pose or correspondence error shows here first),
+        # and how far the template slid along itself to reach the scan (expressions slide skin a
+        # few mm at most; much more, or one basis far above the others, is a sliding registration).
+        seen = np.isfinite(change[i])
+        report["scans"][i]["quality"] = {
+            "marker_residual_mm": {"mean": float(np.mean(change[i][seen])) if seen.any() else float("nan"),
+                                   "max": float(np.max(change[i][seen])) if seen.any() else float("nan")},
+            "tangential_motion_mm": slide[i],
+            "normal_motion_mm": lift[i],
+        }
         if not np.isfinite(distances[i]) or distances[i] > flag_threshold_mm:
             flagged.add(i)
     report["timings"] = timings

@@ -40,19 +40,29 @@ def read_truth(path: str | Path) -> dict[str, np.ndarray]:
     return truth
 
 
-def evaluate_result(truth_path: str | Path, result_dir: str | Path) -> DenseError:
+def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: str = "auto") -> DenseError:
     """Compare a result folder with ground truth, in mm.
 
-    A stabilised result is compared with the expression-only truth; an
-    unstabilised one with the truth moved by the head motion relative to the
-    rest frame (which is what the warp maps onto the scan).
+    What a user gets from a stabilised result is the face *and* its head
+    motion, so by default a result with ``head_motion.npy`` is compared in
+    the world: its vertices moved by its head motion against the truth moved
+    by the true head motion (both relative to the rest frame). A pose the
+    stabilisation got wrong and the face then followed cancels there; one it
+    did not follow does not. ``frame='stabilized'`` compares the stabilised
+    vertices with the expression-only truth instead, which also charges the
+    stabilisation's own error. An unstabilised result is compared with the
+    truth moved by the head motion relative to the rest frame (which is what
+    the warp maps onto the scan).
 
     Parameters
     ----------
     truth_path : str or Path
         Ground-truth ``.npz`` (see :func:`read_truth`).
     result_dir : str or Path
-        A finished ``facecap animate`` output folder.
+        A finished ``facecap animate`` or ``facecap blend`` output folder.
+    frame : {'auto', 'world', 'stabilized'}, default 'auto'
+        'auto': 'world' when the result has ``head_motion.npy``, else the
+        result's own frame as described above.
 
     Returns
     -------
@@ -63,8 +73,15 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path) -> DenseErro
     InputError
         If frame or vertex counts differ.
     """
+    if frame not in ("auto", "world", "stabilized"):
+        raise InputError(f"frame: expected 'auto', 'world' or 'stabilized', got {frame!r}")
     truth = read_truth(truth_path)
     info = read_performance_info(result_dir)
+    motion_path = Path(result_dir) / "head_motion.npy"
+    stabilized = bool(info.get("stabilized", False))
+    if frame == "world" and not (stabilized and motion_path.is_file()):
+        raise InputError("frame='world' needs a stabilised result with head_motion.npy", path=str(result_dir))
+    world = stabilized and motion_path.is_file() and frame != "stabilized"
     result = np.load(Path(result_dir) / "vertices.npy", mmap_mode="r")
     T_truth = truth["vertices"]
     if result.shape != T_truth.shape:
@@ -75,17 +92,26 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path) -> DenseErro
         )
     truth_unit = str(truth["units"]) if "units" in truth else "mm"
     truth_mm = T_truth.astype(np.float32) * np.float32(mm_per_unit(truth_unit))
-    if not info.get("stabilized", False) and "head_pose" in truth:
-        rest = int(info.get("rest_frame", 0))
+    rest = int(info.get("rest_frame", 0))
+    if (world or not stabilized) and "head_pose" in truth:
         pose = truth["head_pose"].astype(np.float64)
         pose[:, :3, 3] *= mm_per_unit(truth_unit)
-        relative = np.linalg.inv(pose[rest])[None] @ pose
-        truth_mm = (
-            np.einsum("tij,tnj->tni", relative[:, :3, :3].astype(np.float32), truth_mm)
-            + relative[:, None, :3, 3].astype(np.float32)
-        )
+        truth_mm = _moved(truth_mm, np.linalg.inv(pose[rest])[None] @ pose)
     result_scale = np.float32(mm_per_unit(info.get("units", "mm")))
     result_mm = result if result_scale == 1 else np.asarray(result) * result_scale
+    if world:
+        motion = np.load(motion_path).astype(np.float64)
+        if motion.shape != (result.shape[0], 4, 4):
+            raise FileFormatError(f"head_motion.npy has shape {motion.shape}, expected ({result.shape[0]}, 4, 4)",
+                                  path=str(motion_path))
+        motion[:, :3, 3] *= float(result_scale)
+        result_mm = _moved(np.asarray(result_mm, dtype=np.float32), np.linalg.inv(motion[rest])[None] @ motion)
     names = [str(s) for s in truth["region_names"]] if "region_names" in truth else None
     labels = truth.get("region_labels")
     return evaluate_performance(result_mm, truth_mm, region_labels=labels, region_names=names)
+
+
+def _moved(vertices: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """(T, n, 3) float32 vertices moved by per-frame rigid transforms (T, 4, 4)."""
+    return (np.einsum("tij,tnj->tni", pose[:, :3, :3].astype(np.float32), vertices)
+            + pose[:, None, :3, 3].astype(np.float32))

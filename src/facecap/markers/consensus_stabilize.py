@@ -1,0 +1,178 @@
+"""Head stabilisation when no marker is rigid: the rigid motion most markers agree on, frame by frame."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from ..errors import InputError, MarkerError
+from ..typing import FloatArray
+from ..validate import as_marker_positions
+from .rigid_fit import rigid_fit
+from .stabilize_head import Stabilization, stabilize_head
+
+__all__ = ["consensus_stabilize", "estimate_marker_noise"]
+
+CONSENSUS_SCALE_PER_NOISE = 4.0
+"""Welsch scale of the per-frame agreement, in units of the markers' noise standard deviation."""
+
+MIN_CONSENSUS_SCALE_MM = 0.5
+"""Floor of that scale: noise estimates of nearly exact data must not make every marker an outlier."""
+
+MOTION_PRIOR_MM = 2.0
+"""A marker that moves this far from the rest (its 90th percentile) counts half in every frame."""
+
+
+def estimate_marker_noise(positions: FloatArray) -> float:
+    """Standard deviation of the markers' measurement noise per coordinate (mm), from the data alone.
+
+    Parameters
+    ----------
+    positions : (T, M, 3) float64 array, mm
+        Raw marker positions, NaN for gaps.
+
+    Returns
+    -------
+    float
+        ``sigma``, mm; NaN when fewer than three consecutive frames exist.
+
+    Notes
+    -----
+    For white noise of standard deviation ``sigma`` the second difference
+    ``x(t+1) - 2 x(t) + x(t-1)`` has standard deviation ``sqrt(6) sigma``.
+    Facial motion sampled at 60 Hz or more changes far less than that between
+    three frames for most samples, so the median absolute second difference
+    (over every marker, frame and axis, scaled by 1/0.6745 for a Gaussian)
+    measures the noise and is robust to the fast minority (speech, blinks).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> P = np.cumsum(rng.normal(scale=0.01, size=(600, 20, 3)), axis=0) + rng.normal(scale=0.2, size=(600, 20, 3))
+    >>> round(estimate_marker_noise(P), 2)
+    0.2
+    """
+    P = as_marker_positions(positions, name="positions")
+    if P.shape[0] < 3:
+        return float("nan")
+    d2 = P[2:] - 2.0 * P[1:-1] + P[:-2]
+    d2 = np.abs(d2[np.isfinite(d2)])
+    if d2.size == 0:
+        return float("nan")
+    return float(np.median(d2) / 0.6745 / np.sqrt(6.0))
+
+
+def consensus_stabilize(
+    positions: FloatArray,
+    *,
+    rest_frame: int = 0,
+    noise_mm: float | None = None,
+    iterations: int = 10,
+    rounds: int = 3,
+    rigid_set_weight: float = 0.0,
+    motion_prior_mm: float = 2.0,
+) -> Stabilization:
+    """Remove head motion from skin markers alone: per frame, the rigid motion most markers agree on.
+
+    Without a head band, every marker on a face moves with some expression,
+    so a fixed "stable" set carries expression into the head pose (a brow
+    raise read as a nod). Here each frame gets its own robust rigid fit to
+    the rest frame: markers that land within a few noise deviations of
+    their rest positions carry the fit, markers the expression moved are
+    weighted down, and markers that move a lot over the whole take (lips,
+    jaw) count less in every frame, so a jaw opening as one piece cannot
+    capture the fit.
+
+    Parameters
+    ----------
+    positions : (T, M, 3) float64 array, mm
+        Gap-filled marker positions (NaN where still missing).
+    rest_frame : int, default 0
+        The frame every other frame is moved onto.
+    noise_mm : float, optional
+        Noise standard deviation of the markers; default
+        :func:`estimate_marker_noise` of ``positions``.
+    iterations : int, default 10
+        Reweighting steps per round.
+    rounds : int, default 3
+        Times the per-marker motion prior is re-estimated from the current
+        stabilisation.
+
+    Returns
+    -------
+    Stabilization
+        As :func:`~facecap.markers.stabilize_head.stabilize_head`;
+        ``stable_markers`` are the markers whose mean weight over the take is
+        at least half the largest (those that carried the fit), and
+        ``residual_rms`` the weighted RMS misfit.
+
+    Raises
+    ------
+    MarkerError
+        If fewer than 3 markers are visible at the rest frame.
+    InputError
+        If an option is out of range.
+
+    Notes
+    -----
+    Iteratively reweighted least squares on
+    ``sum_k p_k rho(|R_t m_k(t) + c_t - m_k(rest)|)`` per frame ``t``, with
+    Welsch's ``rho`` (weights ``exp(-(r / s)^2)``, ``s`` =
+    :data:`CONSENSUS_SCALE_PER_NOISE` noise deviations, at least
+    :data:`MIN_CONSENSUS_SCALE_MM`) and a per-marker prior
+    ``p_k = 1 / (1 + (q_k / 2 mm)^2)``, ``q_k`` the 90th percentile of the
+    marker's distance from its rest position after the current
+    stabilisation. Each step is a weighted Kabsch fit
+    (:func:`~facecap.markers.rigid_fit.rigid_fit`), batched over frames. It
+    starts from :func:`~facecap.markers.stabilize_head.stabilize_head`'s most
+    rigid set, which is within a degree or so of the truth, so the
+    redescending weights converge to the consensus rather than to a moving
+    patch.
+    """
+    P = as_marker_positions(positions, name="positions")
+    T, M, _ = P.shape
+    if not (isinstance(rest_frame, (int, np.integer)) and 0 <= rest_frame < T):
+        raise InputError(f"rest_frame: expected an integer frame index in [0, {T}), got {rest_frame!r}")
+    for name, value in (("iterations", iterations), ("rounds", rounds)):
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+            raise InputError(f"{name}: expected an integer >= 1, got {value!r}")
+    target = P[rest_frame]
+    if np.count_nonzero(np.isfinite(target).all(axis=1)) < 3:
+        raise MarkerError(f"positions: fewer than 3 markers visible at rest_frame {rest_frame}")
+    sigma = estimate_marker_noise(P) if noise_mm is None else float(noise_mm)
+    if not np.isfinite(sigma) or sigma < 0:
+        sigma = 0.0
+    scale = max(CONSENSUS_SCALE_PER_NOISE * sigma, MIN_CONSENSUS_SCALE_MM)
+
+    start = stabilize_head(P, rest_frame=rest_frame)
+    moved = start.positions
+    seen = np.isfinite(P).all(axis=2) & np.isfinite(target).all(axis=1)[None]
+    fit = None
+    W = np.zeros((T, M))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns and frames
+        for _ in range(rounds):
+            distance = np.linalg.norm(moved - target[None], axis=2)
+            q90 = np.nanpercentile(np.where(seen, distance, np.nan), 90, axis=0)
+            prior = 1.0 / (1.0 + (np.nan_to_num(q90, nan=np.inf) / motion_prior_mm) ** 2)
+            prior[start.stable_markers] *= 1.0 + rigid_set_weight
+            for _ in range(iterations):
+                W = np.where(seen, prior[None] * np.exp(-(np.nan_to_num(distance, nan=np.inf) / scale) ** 2), 0.0)
+                # a frame whose markers all moved keeps the start's weights rather than none
+                weak = np.count_nonzero(W > 1e-6 * prior.max(), axis=1) < 3
+                if weak.any():
+                    W[weak] = np.where(seen[weak], prior[None], 0.0)
+                fit = rigid_fit(P, target, weights=W)
+                moved = fit.apply(P)
+                distance = np.linalg.norm(moved - target[None], axis=2)
+    assert fit is not None
+    mean_weight = W.sum(axis=0) / max(T, 1)
+    carried = np.flatnonzero(mean_weight >= 0.5 * mean_weight.max())
+    return Stabilization(
+        positions=np.ascontiguousarray(moved),
+        rotations=fit.rotation,
+        translations=fit.translation,
+        stable_markers=carried.astype(np.int64),
+        residual_rms=fit.rms,
+    )
