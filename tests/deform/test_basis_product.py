@@ -155,6 +155,19 @@ def test_dense_weights_round_trip(precision):
     np.testing.assert_allclose(product.dense_weights(), W, atol=tolerance)
 
 
+@pytest.mark.parametrize("precision", ["float32", "int16"])
+def test_weight_rows_are_rows_of_the_dense_weights(precision):
+    if precision == "int16" and not HAVE_MKL:
+        pytest.skip("the int16 path runs on MKL's integer GEMM")
+    W = _shell_like_weights(300, 6, 14)
+    rows = np.random.default_rng(17).integers(0, 700, size=50)
+    product = BasisProduct(W, precision=precision, block_vertices=128,
+                           vertex_rows=np.random.default_rng(18).integers(0, 300, size=700))
+    np.testing.assert_array_equal(product.weight_rows(rows), product.dense_weights()[rows])
+    with pytest.raises(InputError, match="vertices"):
+        product.weight_rows(np.array([700]))
+
+
 def test_bad_arguments_are_named():
     W = np.ones((10, 3))
     with pytest.raises(InputError, match="weights"):

@@ -12,6 +12,8 @@ In the order a user meets them:
   :func:`thin_shell_deform` is the one-shot form.
 - :class:`BasisProduct` (``basis_product.py``): the per-frame dense product
   (the hot path) in float32 or int16 fixed point.
+- :class:`MarkerOffsets` (``marker_offsets.py``): marker displacements to skin
+  displacements, the markers' height above the skin carried with the surface.
 - :class:`SpdFactor` (``factor_spd.py``): the sparse SPD factorisation
   (PARDISO, or SciPy's SuperLU where MKL is missing).
 - :func:`rbf_deformation_basis` (``rbf_deform.py``): the warp alone, the
@@ -27,6 +29,7 @@ from __future__ import annotations
 from .animate_scan import AnimationResult, PreparedMarkers, animate_scan, prepare_markers
 from .basis_product import BasisProduct, Precision
 from .factor_spd import SpdFactor, available_backends
+from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, DEFAULT_OFFSET_ITERATIONS, MarkerOffsets
 from .rbf_deform import rbf_deformation_basis
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, PieceReport, ThinShellSolver, thin_shell_deform
 from .triharmonic_warp import TriharmonicWarp
@@ -44,6 +47,9 @@ __all__ = [
     "DEFAULT_KB_MM2",
     "BasisProduct",
     "Precision",
+    "MarkerOffsets",
+    "DEFAULT_MARKER_OFFSET_MM",
+    "DEFAULT_OFFSET_ITERATIONS",
     "SpdFactor",
     "available_backends",
     "rbf_deformation_basis",

@@ -237,6 +237,23 @@ class BasisProduct:
             W *= self._vertex_scale[:, None]
         return W
 
+    def weight_rows(self, vertices: np.ndarray) -> np.ndarray:
+        """The weights of a few vertices as (k, K) float32 (dequantised for int16), without a full copy.
+
+        Parameters
+        ----------
+        vertices : (k,) int array
+            Vertex indices in ``0 .. n - 1``.
+        """
+        v = np.asarray(vertices)
+        if v.ndim != 1 or not np.issubdtype(v.dtype, np.integer) or (v.size and (v.min() < 0 or v.max() >= self.n_vertices)):
+            raise InputError(f"vertices: expected a (k,) array of vertex indices 0..{self.n_vertices - 1}")
+        rows = self.block_vertices
+        W = self._blocks[v // rows, :, v % rows].astype(np.float32)
+        if self._vertex_scale is not None:
+            W *= self._vertex_scale[v][:, None]
+        return W
+
     def apply_into(self, marker_displacements: np.ndarray, rest: np.ndarray, out: np.ndarray) -> np.ndarray:
         """Write ``rest + weights @ d`` for every frame of a batch into ``out``.
 
