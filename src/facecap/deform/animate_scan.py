@@ -20,14 +20,19 @@ from ..markers.rigid_fit import rigid_fit
 from ..mesh.check_mesh import check_mesh
 from ..structures import MarkerSequence, Mesh
 from ..units import check_take_units
+from ..validate import as_positive
 from .basis_product import Precision
 from .factor_spd import Backend
+from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, MarkerOffsets
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces
 from .triharmonic_warp import TriharmonicWarp
 
 __all__ = ["animate_scan", "AnimationResult", "prepare_markers", "PreparedMarkers"]
 
 _MIN_MARKERS = 4
+
+DEFAULT_REST_AVERAGE_S = 0.1
+"""Half-width (Gaussian sigma, seconds) of the average that gives the warp its rest markers."""
 
 
 @dataclass(frozen=True)
@@ -190,6 +195,8 @@ def animate_scan(
     kb: float = DEFAULT_KB_MM2,
     stabilize: bool | Sequence[str] = False,
     smooth: bool = True,
+    marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
+    rest_average_s: float = DEFAULT_REST_AVERAGE_S,
     exports: Iterable[str] = (),
     unmarked_pieces: UnmarkedPieces = "carry",
     batch_frames: int = 32,
@@ -225,6 +232,19 @@ def animate_scan(
         ``head_motion.npy`` and the USD export).
     smooth : bool, default True
         Spatio-temporal bilateral filtering of the markers.
+    marker_offset_mm : float, default 1.5
+        Height of the marker centres above the skin, mm (the same meaning as
+        ``register_scans``' option). The warp maps the rest markers onto the
+        scan points lifted by it along the scan's normals, and each frame's
+        marker displacement becomes the skin's by carrying the offset with the
+        deformed surface (:class:`~facecap.deform.marker_offsets.MarkerOffsets`).
+        0: the markers are taken to lie on the skin (the paper).
+    rest_average_s : float, default 0.1
+        The warp's rest markers are a Gaussian average (this sigma, in
+        seconds, cut at 2.5 sigma) of the conditioned markers round
+        ``rest_frame``, so the rest frame's noise does not offset every
+        frame; assumes the face holds its rest expression that long (as the
+        bilateral filter's rest does). 0: the rest frame alone (the paper).
     exports : iterable of {'obj', 'ply', 'usd'}
         Extra per-frame exports.
     unmarked_pieces : {'carry', 'rigid'}, default 'carry'
@@ -255,6 +275,8 @@ def animate_scan(
     check_take_units(scan, markers, correspondence, rest_frame=rest_frame)
     timings: dict[str, float] = {}
     caught: list[str] = []
+    marker_offset_mm = as_positive(marker_offset_mm, name="marker_offset_mm", allow_zero=True)
+    rest_average_s = as_positive(rest_average_s, name="rest_average_s", allow_zero=True)
 
     def stage(message: str) -> None:
         if progress:
@@ -274,19 +296,26 @@ def animate_scan(
         timings["condition_markers_s"] = time.perf_counter() - t
 
         t = time.perf_counter()
-        warp = TriharmonicWarp(prepared.positions[rest_frame], prepared.scan_points)
-        face_markers = warp(prepared.positions)  # (T, K, 3), face space
-        displacements = face_markers - prepared.scan_points[None]
-        loo = warp.leave_one_out_residuals()
-        timings["correspondence_warp_s"] = time.perf_counter() - t
-
-        t = time.perf_counter()
         stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
         solver = ThinShellSolver(
             scan.vertices, scan.faces, prepared.constrained_vertices,
             ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
         )
+        offsets = MarkerOffsets(scan.vertices, scan.faces, solver, marker_offset_mm=marker_offset_mm)
         timings["shell_setup_s"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        rest_markers = _rest_markers(prepared.positions, rest_frame, rest_average_s * markers.rate)
+        centres = prepared.scan_points + offsets.marker_offset_mm * offsets.rest_normals  # markers at rest, face space
+        warp = TriharmonicWarp(rest_markers, centres)
+        face_markers = warp(prepared.positions)  # (T, K, 3), face space
+        marker_displacements = face_markers - centres[None]
+        loo = warp.leave_one_out_residuals()
+        timings["correspondence_warp_s"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        displacements = offsets.skin_displacements(marker_displacements)
+        timings["marker_offsets_s"] = time.perf_counter() - t
         for w in records:
             if issubclass(w.category, FacecapWarning):
                 caught.append(str(w.message))
@@ -294,14 +323,14 @@ def animate_scan(
         warnings.warn(message, FacecapWarning, stacklevel=2)
 
     # Per-frame marker residual of the deformed scan: distance between each
-    # marker's warped position and its point on the deformed surface. Zero for
-    # vertex maps; the snapping error for barycentric ones.
-    constrained_rest = scan.vertices[prepared.constrained_vertices]
-    snap_offset = prepared.scan_points - constrained_rest
-    marker_residual = np.linalg.norm(
-        (constrained_rest[None] + displacements + snap_offset[None]) - face_markers, axis=2
-    )
-    head_pose = _head_pose_in_scan(prepared, warp, rest_frame) if prepared.head_rotations is not None else None
+    # marker's warped position and where the deformed surface puts it (its
+    # scan point moved with the marker vertex, lifted by the offset along the
+    # deformed normal). Zero for vertex maps without offset; the snapping error
+    # for barycentric ones; the fixed point's convergence with an offset.
+    lift = offsets.marker_offset_mm * (offsets.deformed_normals(displacements) if offsets.marker_offset_mm else 0.0)
+    marker_residual = np.linalg.norm(prepared.scan_points[None] + displacements + lift - face_markers, axis=2)
+    offset_correction = np.linalg.norm(displacements - marker_displacements, axis=2)
+    head_pose = _head_pose_in_scan(prepared, rest_markers, centres) if prepared.head_rotations is not None else None
 
     T, n = markers.n_frames, scan.n_vertices
     t = time.perf_counter()
@@ -315,6 +344,8 @@ def animate_scan(
         "stabilized": head_pose is not None,
         "parameters": {
             "ks": ks, "kb_mm2": kb, "smooth": smooth, "unmarked_pieces": unmarked_pieces,
+            "marker_offset_mm": offsets.marker_offset_mm, "offset_iterations": offsets.iterations,
+            "rest_average_s": float(rest_average_s),
             "stable_markers": list(prepared.stable_labels), "backend": solver.backend,
             "precision": solver.product.precision,
             "product_error_bound_mm": solver.product.error_bound_mm(float(np.abs(disp32).max(initial=0.0))),
@@ -345,6 +376,11 @@ def animate_scan(
                 "per_frame_max": marker_residual.max(axis=1).tolist(),
                 "max": float(marker_residual.max()),
             },
+            "marker_offset_correction_mm": {
+                "per_frame_max": offset_correction.max(axis=1).tolist(),
+                "mean": float(offset_correction.mean()),
+                "max": float(offset_correction.max()),
+            },
             "conditioning_mm": {
                 "per_frame_rms_change": _rms_change(prepared.raw_positions, prepared.positions, prepared).tolist(),
             },
@@ -361,19 +397,39 @@ def animate_scan(
     return AnimationResult(out_dir=final, report=report)
 
 
-def _head_pose_in_scan(prepared: PreparedMarkers, warp: TriharmonicWarp, rest_frame: int) -> np.ndarray:
+def _head_pose_in_scan(prepared: PreparedMarkers, sources: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """Head motion per frame as 4x4 transforms in scan coordinates (mm).
 
     The stabiliser maps frame t onto the rest frame in mocap space (x' = R_t x + t_t);
     the head motion is its inverse, carried into scan space by the rigid part
-    ``A`` of the correspondence warp: ``P_t = A S_t^-1 A^-1``.
+    ``A`` of the correspondence warp (its rest markers ``sources`` onto
+    ``targets``): ``P_t = A S_t^-1 A^-1``.
     """
-    fit = rigid_fit(prepared.positions[rest_frame], prepared.scan_points)
+    fit = rigid_fit(sources, targets)
     A = np.eye(4)
     A[:3, :3], A[:3, 3] = fit.rotation, fit.translation
     S = np.tile(np.eye(4), (prepared.head_rotations.shape[0], 1, 1))
     S[:, :3, :3], S[:, :3, 3] = prepared.head_rotations, prepared.head_translations
     return A[None] @ np.linalg.inv(S) @ np.linalg.inv(A)[None]
+
+
+def _rest_markers(P: np.ndarray, rest_frame: int, sigma_frames: float) -> np.ndarray:
+    """The rest frame's markers refined by a Gaussian average of the frames round it (K, 3), mm.
+
+    Computed as the rest sample plus the weighted mean deviation from it (cut at
+    2.5 sigma, within the take), so a still take keeps its rest frame bit for bit.
+    """
+    rest = P[rest_frame]
+    if sigma_frames <= 0:
+        return rest
+    reach = int(2.5 * sigma_frames + 0.5)
+    lo, hi = max(0, rest_frame - reach), min(P.shape[0], rest_frame + reach + 1)
+    w = np.exp(-0.5 * ((np.arange(lo, hi) - rest_frame) / sigma_frames) ** 2)
+    dev = P[lo:hi] - rest[None]
+    seen = np.isfinite(dev).all(axis=2)  # (window, K)
+    weight = w[:, None] * seen
+    mean_dev = np.einsum("tk,tkc->kc", weight, np.where(seen[..., None], dev, 0.0)) / weight.sum(axis=0)[:, None]
+    return rest + mean_dev
 
 
 def _pose_to_unit(pose: np.ndarray, scan: Mesh) -> np.ndarray:
