@@ -48,6 +48,10 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
              "per frame, the pose most markers agree on) or comma-separated labels [off]",
     )
     p.add_argument("--no-smooth", action="store_true", help="skip the spatio-temporal bilateral filter")
+    p.add_argument("--marker-offset", type=float, default=1.5,
+                   help="marker centre height above the skin, mm; 0: markers on the skin (the paper) [1.5]")
+    p.add_argument("--rest-average", type=float, default=0.1,
+                   help="the warp's rest markers: Gaussian average round --rest-frame, sigma in s; 0: that frame alone [0.1]")
     p.add_argument("--export", default="", help="extra exports, comma-separated: obj, ply, usd")
     p.add_argument("--unmarked-pieces", choices=("carry", "rigid"), default="carry",
                    help="pieces with no marker (eyes, teeth): follow the nearest marked surface, or stay [carry]")
@@ -78,7 +82,8 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     result = animate_scan(
         scan, take, corr, args.out,
         rest_frame=args.rest_frame, ks=args.ks, kb=args.kb, stabilize=stabilize,
-        smooth=not args.no_smooth, exports=exports, unmarked_pieces=args.unmarked_pieces,
+        smooth=not args.no_smooth, marker_offset_mm=args.marker_offset, rest_average_s=args.rest_average,
+        exports=exports, unmarked_pieces=args.unmarked_pieces,
         batch_frames=args.batch_frames, precision=args.precision, progress=not args.quiet,
         extra_metadata={"map": str(args.map)},
     )

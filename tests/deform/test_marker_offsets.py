@@ -128,3 +128,17 @@ def test_offset_is_on_by_default_and_recorded(generated_results):
     report = json.loads((folders["default"] / "report.json").read_text())
     assert report["marker_residual_mm"]["max"] < 0.01  # the fixed point has converged
     assert report["marker_offset_correction_mm"]["max"] > 0.05
+
+
+def test_cli_marker_offset_option(capture_case, tmp_path, capsys):
+    from facecap.cli import main
+
+    def animate(out, *extra):
+        return main(["--quiet", "animate", "--scan", str(capture_case.scan_path), "--markers",
+                     str(capture_case.markers_path), "--map", str(capture_case.map_path), "--out", str(out), *extra])
+
+    assert animate(tmp_path / "a", "--marker-offset", "0", "--rest-average", "0") == 0
+    parameters = json.loads((tmp_path / "a" / "performance.json").read_text())["parameters"]
+    assert parameters["marker_offset_mm"] == 0.0 and parameters["rest_average_s"] == 0.0
+    assert animate(tmp_path / "b", "--marker-offset", "-1") == 2
+    assert "marker_offset_mm" in capsys.readouterr().err
