@@ -116,6 +116,10 @@ class MarkerSequence:
         numbering (C3D header frame 1 and TRC ``Frame#`` 1 are 0), for timecodes.
     residuals : (T, M) float64 array, mm, or None
         Per-sample C3D residual, NaN at gaps; None for formats without one.
+    subjects : tuple of str, length M, or None
+        Per-marker subject name split off a ``Subject:Marker`` label (Vicon
+        Nexus, OptiTrack Motive), ``''`` for a marker without one; None when
+        the file's labels carry no subject.
     """
 
     positions: FloatArray
@@ -125,6 +129,7 @@ class MarkerSequence:
     source_path: str | None = None
     first_frame: int = 0
     residuals: FloatArray | None = field(default=None, repr=False)
+    subjects: tuple[str, ...] | None = None
 
     def __post_init__(self) -> None:
         P = as_marker_positions(self.positions, name="positions")
@@ -132,6 +137,11 @@ class MarkerSequence:
         labels = tuple(str(s) for s in self.labels)
         if len(labels) != P.shape[1]:
             raise MarkerError(f"labels: expected {P.shape[1]} labels, got {len(labels)}")
+        if self.subjects is not None:
+            subjects = tuple(str(s) for s in self.subjects)
+            if len(subjects) != len(labels):
+                raise MarkerError(f"subjects: expected {len(labels)} subject names, got {len(subjects)}")
+            object.__setattr__(self, "subjects", subjects)
         if len(set(labels)) != len(labels):
             dup = sorted({s for s in labels if labels.count(s) > 1})
             raise MarkerError(f"labels: duplicate marker labels {dup}")
@@ -178,6 +188,7 @@ class MarkerSequence:
             positions=self.positions[:, cols],
             labels=tuple(labels),
             residuals=None if self.residuals is None else self.residuals[:, cols],
+            subjects=None if self.subjects is None else tuple(self.subjects[c] for c in cols),
         )
 
     def with_positions(self, positions: FloatArray) -> "MarkerSequence":

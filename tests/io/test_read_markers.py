@@ -9,7 +9,7 @@ import ezc3d
 import numpy as np
 import pytest
 
-from facecap.errors import FileFormatError, InputError
+from facecap.errors import FacecapWarning, FileFormatError, InputError
 from facecap.io.read_markers import read_markers
 
 # --------------------------------------------------------------------------- helpers
@@ -243,19 +243,84 @@ def test_c3d_corrupt_parameter_sections_never_crash(tmp_path):
     assert outcomes["rejected"] > 0 and sum(outcomes.values()) == 60
 
 
-def test_c3d_inconsistent_header_is_rejected(tmp_path):
-    xyz = np.ones((4, 2, 3))
+def test_c3d_header_copies_yield_to_the_parameters_and_the_data(tmp_path):
+    # The header's counts are copies of POINT:USED and POINT:FRAMES (C3D User Guide);
+    # ezc3d reads by the parameters, and so does facecap where the file holds that data.
+    rng = np.random.default_rng(6)
+    xyz = rng.uniform(-100.0, 100.0, size=(4, 2, 3))
     whole = bytearray(_ezc3d_file(tmp_path / "ok.c3d", xyz, ["a", "b"], 60.0).read_bytes())
+    expected = xyz.astype(np.float32).astype(np.float64)
     more_points = bytearray(whole)
     struct.pack_into("<H", more_points, 2, 3)  # header says 3 markers, POINT:USED says 2
     (tmp_path / "points.c3d").write_bytes(bytes(more_points))
-    with pytest.raises(FileFormatError, match="POINT:USED"):
-        read_markers(tmp_path / "points.c3d")
+    np.testing.assert_array_equal(read_markers(tmp_path / "points.c3d").positions, expected)
     inverted = bytearray(whole)
-    struct.pack_into("<2H", inverted, 6, 9, 3)  # first frame 9, last frame 3
+    struct.pack_into("<2H", inverted, 6, 9, 3)  # first frame 9, last frame 3; POINT:FRAMES says 4
     (tmp_path / "frames.c3d").write_bytes(bytes(inverted))
-    with pytest.raises(FileFormatError, match="inverted"):
-        read_markers(tmp_path / "frames.c3d")
+    np.testing.assert_array_equal(read_markers(tmp_path / "frames.c3d").positions, expected)
+
+
+def test_c3d_inverted_header_without_point_frames_is_rejected(tmp_path):
+    counts = np.full((3, 2, 3), 100, dtype=np.int64)
+    data = bytearray(_int_c3d_bytes(counts, np.zeros((3, 2), bool), 0.1, ["a", "b"], 50.0, "mm"))
+    # Rename POINT:FRAMES to POINT:FRAMEZ so that only the header gives the count.
+    at = data.index(b"FRAMES")
+    data[at : at + 6] = b"FRAMEZ"
+    struct.pack_into("<2H", data, 6, 9, 3)
+    path = tmp_path / "inverted.c3d"
+    path.write_bytes(bytes(data))
+    with pytest.raises(FileFormatError, match="inverted") as info:
+        read_markers(path)
+    _assert_one_clear_line(info, path)
+
+
+def test_c3d_stale_point_used_is_read_by_the_header_count_that_fits(tmp_path):
+    # POINT:USED one too many for the data (c3d.org's kyowadengyo.c3d): ezc3d reads
+    # misaligned frames; facecap reads the header's count, which the file holds.
+    rng = np.random.default_rng(7)
+    counts = rng.integers(-3000, 3000, size=(40, 3, 3))
+    occluded = np.zeros((40, 3), bool)
+    data = bytearray(_int_c3d_bytes(counts, occluded, 0.1, ["a", "b", "c"], 50.0, "mm"))
+    data_start = struct.unpack_from("<H", data, 16)[0]
+    data = data[: (data_start - 1) * 512 + 40 * 3 * 8]  # no padding after the last frame
+    used = data.index(b"USED") + 4 + 2 + 2
+    struct.pack_into("<h", data, used, 4)
+    path = tmp_path / "stale_used.c3d"
+    path.write_bytes(bytes(data))
+    assert ezc3d.c3d(str(path))["data"]["points"].shape[1:] == (4, 30)  # silently wrong
+    take = read_markers(path)
+    assert take.labels == ("a", "b", "c") and take.n_frames == 40
+    np.testing.assert_allclose(take.positions, counts * 0.1, rtol=1e-6)
+
+
+def test_c3d_unfinished_export_reads_the_whole_frames_with_a_warning(tmp_path):
+    rng = np.random.default_rng(8)
+    xyz, labels = _take(rng, T=30, M=3)
+    whole = _ezc3d_file(tmp_path / "whole.c3d", xyz, labels, 60.0).read_bytes()
+    data_start = struct.unpack_from("<H", whole, 16)[0]
+    path = tmp_path / "unfinished.c3d"
+    path.write_bytes(whole[: (data_start - 1) * 512 + 12 * 3 * 16])  # 12 whole frames of 30
+    with pytest.warns(FacecapWarning, match="declares 30 frames but ends exactly after frame 12"):
+        take = read_markers(path)
+    np.testing.assert_array_equal(take.positions, xyz[:12].astype(np.float32).astype(np.float64))
+
+
+def test_c3d_duplicate_labels_get_a_suffix_with_a_warning(tmp_path):
+    rng = np.random.default_rng(9)
+    xyz, _ = _take(rng, T=5, M=4)
+    path = _ezc3d_file(tmp_path / "dup.c3d", xyz, ["LANK", "RANK", "LANK", "LANK_2"], 100.0)
+    with pytest.warns(FacecapWarning, match="duplicate"):
+        take = read_markers(path)
+    assert take.labels == ("LANK", "RANK", "LANK_3", "LANK_2")
+
+
+def test_c3d_subject_prefix_split_only_when_unambiguous(tmp_path):
+    rng = np.random.default_rng(10)
+    xyz, _ = _take(rng, T=5, M=3)
+    one = read_markers(_ezc3d_file(tmp_path / "one.c3d", xyz, ["Ann:Chin", "Ann:Nose", "Brow"], 100.0))
+    assert one.labels == ("Chin", "Nose", "Brow") and one.subjects == ("Ann", "Ann", "")
+    two = read_markers(_ezc3d_file(tmp_path / "two.c3d", xyz, ["Ann:Chin", "Bob:Chin", "Brow"], 100.0))
+    assert two.labels == ("Ann:Chin", "Bob:Chin", "Brow") and two.subjects is None
 
 
 # --------------------------------------------------------------------------- TRC

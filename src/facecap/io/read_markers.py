@@ -5,9 +5,20 @@ Formats
 ``.c3d``
     The binary motion-capture standard (https://www.c3d.org), read with
     ezc3d. Labels come from ``POINT:LABELS`` (then ``LABELS2``, ...), the rate
-    from ``POINT:RATE``, the unit from ``POINT:UNITS``. A sample is occluded
+    from ``POINT:RATE``, the unit from ``POINT:UNITS`` (a word cut to the
+    parameter's width, such as ``'mete'``, is completed). A sample is occluded
     when its residual is negative or its x, y, z are all exactly zero (how
-    C3D writers, ezc3d included, store a gap).
+    C3D writers, ezc3d included, store a gap). Intel, DEC (VAX floats) and
+    SGI/MIPS big-endian files are read; big-endian ones are converted to
+    Intel byte order in a temporary copy that ezc3d reads. The counts are the
+    parameters' (``POINT:USED``, ``POINT:FRAMES``, for takes beyond 65535
+    frames ``TRIAL:ACTUAL_START_FIELD``/``ACTUAL_END_FIELD`` or
+    ``POINT:LONG_FRAMES``) where the file holds that data, else the header's
+    copy where it does. ``Subject:Marker`` labels (Vicon Nexus, ART) lose the
+    prefix, kept in :attr:`MarkerSequence.subjects`, when the labels stay
+    unique without it; a repeated label gets a ``_2``, ``_3`` suffix (with a
+    :class:`~facecap.errors.FacecapWarning`); an empty one is
+    ``unlabeled_point_<column>``.
 ``.trc``
     The tab-separated text format of Motion Analysis and OpenSim: a
     ``PathFileType`` line, a line of header keys (``DataRate``,
@@ -44,15 +55,18 @@ from __future__ import annotations
 import math
 import os
 import struct
-from dataclasses import dataclass
+import tempfile
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import FileFormatError, InputError
+from ..errors import FacecapWarning, FileFormatError, InputError
 from ..structures import MarkerSequence
 from ..typing import FloatArray
 from ..units import mm_per_unit, normalize_unit
+from ._c3d_big_endian import big_endian_to_intel
+from ._c3d_check import DEC, MIPS, C3DLayout, c3d_layout
 
 __all__ = ["read_markers"]
 
@@ -82,7 +96,8 @@ def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> Ma
         file order, ``rate`` in Hz, ``source_unit`` the unit the file was read
         in, ``source_path``, ``first_frame`` (0-based, see module docstring),
         and for C3D ``residuals`` (T, M) float64 in mm, NaN at gaps (None for
-        TRC and CSV, which hold no residuals).
+        TRC and CSV, which hold no residuals) and ``subjects`` (see the module
+        docstring; None when the labels carry none).
 
     Raises
     ------
@@ -90,17 +105,25 @@ def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> Ma
         If the file is missing, empty, truncated, corrupt, has an unknown
         suffix, or its header disagrees with its data; the message names the
         file and, for text formats, the line.
+
+    Warns
+    -----
+    FacecapWarning
+        For a C3D file with repeated labels (renamed) or one that ends after
+        fewer whole frames than it declares (the frames it holds are read).
     InputError
         If ``unit`` is not a known length unit.
 
     Notes
     -----
-    C3D files are checked in Python (header, parameter section layout and
-    the file size the header implies) before ezc3d parses them, because
-    ezc3d silently drops frames missing from a truncated file and can crash
-    the interpreter on a corrupt parameter section. C3D files whose header
-    frame range is saturated (last frame 65535, the convention for longer
-    takes) are read as ezc3d reads them, without the truncation check.
+    C3D files are checked in Python (header, parameter section, the data the
+    counts imply) before ezc3d parses them, following ezc3d's own parser, so
+    that a file ezc3d would crash on, hang on, or silently read other frames
+    or markers from is refused or corrected: a truncated file (one that ends
+    inside a frame) is refused; one that ends exactly after a whole frame,
+    short of the declared count (an export whose writer stopped early), is read
+    with a warning; a stale ``POINT:USED`` or ``POINT:FRAMES`` that the data do
+    not fit gives way to the header's copy that they do fit.
 
     Examples
     --------
@@ -145,6 +168,7 @@ def _make_sequence(
     path: str,
     first_frame: int,
     residuals_file_unit: FloatArray | None = None,
+    subjects: tuple[str, ...] | None = None,
 ) -> MarkerSequence:
     """Convert to mm and build the record; problems become FileFormatError naming ``path``."""
     blank = [i for i, s in enumerate(labels) if not s.strip()]
@@ -172,6 +196,7 @@ def _make_sequence(
             source_path=path,
             first_frame=int(first_frame),
             residuals=R,
+            subjects=subjects,
         )
     except InputError as exc:
         raise FileFormatError(exc.message, path=path) from None
@@ -458,226 +483,44 @@ def _rate_from_times(times: FloatArray, line_numbers: list[int], path: str) -> f
 # --------------------------------------------------------------------------- C3D
 
 
-@dataclass(frozen=True)
-class _C3DLayout:
-    """What the Python-side check of a C3D file found."""
-
-    n_points: int
-    declared_frames: int | None  # None when the header frame range is saturated (> 65535 frames)
-
-
-_TYPE_SIZES = {-1: 1, 1: 1, 2: 2, 4: 4}
-
-
-def _c3d_layout(p: Path) -> _C3DLayout:
-    """Check a C3D file's header and parameter section before ezc3d sees it.
-
-    Raises FileFormatError for anything that would make ezc3d fail, crash,
-    hang, or silently read fewer frames than the header declares.
-    """
-    path = str(p)
-
-    def bad(message: str) -> FileFormatError:
-        return FileFormatError(message, path=path)
-
-    size = p.stat().st_size
-    if size == 0:
-        raise bad("the file is empty")
-    if size < 512:
-        raise bad(f"the file is too short to be a C3D file ({size} bytes; a C3D header alone is 512)")
-    with open(p, "rb") as handle:
-        head = handle.read(512)
-        if head[0] == 0:
-            raise bad("not a C3D file: the header's first byte (parameter block number) is 0")
-        if head[1] != 0x50:
-            raise bad("not a C3D file: the header lacks the C3D key byte 0x50")
-        param_block = head[0]
-        section = (param_block - 1) * 512
-        if param_block < 2 or section + 4 > size:
-            raise bad(
-                f"the header puts the parameter section at block {param_block}, outside the file "
-                "(truncated or corrupt)"
-            )
-        handle.seek(section)
-        sec_head = handle.read(4)
-        processor = sec_head[3]
-        if processor == 86:
-            raise bad("big-endian (MIPS) C3D files are not supported; re-export it as Intel/PC C3D")
-        if processor not in (84, 85):
-            raise bad(f"corrupt parameter section: unknown processor type byte {processor}")
-        qualisys = sec_head[0] == 0 and sec_head[1] == 0
-        if not qualisys and sec_head[1] != 0x50:
-            raise bad("corrupt parameter section: missing the C3D key byte 0x50")
-        start = 1 if qualisys else sec_head[0]
-        n_blocks = sec_head[2]
-        end = min(size, section + n_blocks * 512) if n_blocks else size
-        handle.seek(section)
-        params_bytes = handle.read(end - section)
-    section_cut = bool(n_blocks) and section + n_blocks * 512 > size
-
-    def corrupt(detail: str) -> FileFormatError:
-        if section_cut:
-            return bad("the file is truncated inside its parameter section")
-        return bad(f"the parameter section is corrupt ({detail})")
-
-    word = struct.Struct("<H")
-    sword = struct.Struct("<h")
-    n_points, n_analog, first, last = struct.unpack_from("<4H", head, 2)
-    data_start, analog_per_frame = struct.unpack_from("<2H", head, 16)
-
-    # Walk the parameter records exactly as ezc3d will, bounds-checking each one.
-    groups: dict[int, str] = {}
-    params: dict[tuple[int, str], tuple[int, tuple[int, ...], bytes]] = {}
-    pos = 4 + start - 1
-    limit = len(params_bytes)
-    for _ in range(100000):
-        if pos + 2 > limit:
-            raise corrupt("it ends without an end marker")
-        n_char = struct.unpack_from("<b", params_bytes, pos)[0]
-        if n_char == 0:
-            break
-        gid = struct.unpack_from("<b", params_bytes, pos + 1)[0]
-        n_char = abs(n_char)
-        name_end = pos + 2 + n_char
-        if gid == 0 or name_end + 2 > limit:
-            raise corrupt("bad record header")
-        raw_name = params_bytes[pos + 2 : name_end]
-        if not all(0x20 < c < 0x7F for c in raw_name):
-            raise corrupt("a name holds non-printable bytes")
-        name = raw_name.decode("ascii").upper()
-        offset = sword.unpack_from(params_bytes, name_end)[0]
-        if offset < 0 or (offset > 0 and name_end + offset > limit):
-            raise corrupt(f"record {name!r} points outside it")
-        record_end = name_end + offset if offset else limit
-        cur = name_end + 2
-        if gid < 0:
-            if cur + 1 > record_end:
-                raise corrupt(f"group {name!r}")
-            cur += 1 + params_bytes[cur]
-            groups[-gid] = name
-        else:
-            if cur + 2 > record_end:
-                raise corrupt(f"parameter {name!r}")
-            ptype = struct.unpack_from("<b", params_bytes, cur)[0]
-            n_dims = params_bytes[cur + 1]
-            if ptype not in _TYPE_SIZES or n_dims > 7:
-                raise corrupt(f"parameter {name!r} has type {ptype}, {n_dims} dimensions")
-            cur += 2
-            if cur + n_dims > record_end:
-                raise corrupt(f"parameter {name!r}")
-            dims = tuple(params_bytes[cur : cur + n_dims])
-            cur += n_dims
-            n_bytes = int(np.prod(dims, dtype=np.int64)) * _TYPE_SIZES[ptype]
-            if cur + n_bytes + 1 > record_end:
-                raise corrupt(f"parameter {name!r} overruns its record")
-            params[(gid, name)] = (ptype, dims, params_bytes[cur : cur + n_bytes])
-            cur += n_bytes
-            cur += 1 + params_bytes[cur]
-        if cur > record_end:
-            raise corrupt(f"record {name!r} overruns its space")
-        if offset == 0:
-            break
-        pos = name_end + offset
-    else:
-        raise corrupt("too many records")
-
-    by_group: dict[str, dict[str, tuple[int, tuple[int, ...], bytes]]] = {}
-    for (gid, pname), value in params.items():
-        by_group.setdefault(groups.get(gid, ""), {})[pname] = value
-
-    def count(group: str, pname: str) -> int | None:
-        entry = by_group.get(group, {}).get(pname)
-        if entry is None:
-            return None
-        ptype, dims, _ = entry
-        if ptype == -1:  # strings: first dimension is the length of each
-            return int(np.prod(dims[1:], dtype=np.int64)) if dims else 1
-        return int(np.prod(dims, dtype=np.int64))
-
-    def int_value(group: str, pname: str) -> int | None:
-        entry = by_group.get(group, {}).get(pname)
-        if entry is None or not entry[2]:
-            return None
-        ptype, _, raw = entry
-        if ptype == 2:
-            return word.unpack_from(raw, 0)[0]
-        if ptype == 1:
-            return raw[0]
-        return None
-
-    # Parameters ezc3d reads element [0] of without checking they are non-empty.
-    for group, pname in (
-        ("POINT", "USED"), ("POINT", "SCALE"), ("POINT", "RATE"), ("POINT", "FRAMES"),
-        ("POINT", "DATA_START"), ("ANALOG", "USED"), ("ANALOG", "GEN_SCALE"), ("ANALOG", "RATE"),
-    ):
-        n = count(group, pname)
-        if n is not None and n < 1:
-            raise bad(f"the {group}:{pname} parameter is empty")
-    if n_points == 0:
-        raise bad("the file holds no 3D marker data (header point count is 0)")
-    used = int_value("POINT", "USED")
-    if used is not None and used != n_points:
-        raise bad(f"the header says {n_points} markers but POINT:USED says {used}")
-    n_analogs = 0
-    if n_analog:
-        if analog_per_frame == 0 or n_analog % analog_per_frame:
-            raise bad(
-                f"the header's analog counts are inconsistent ({n_analog} samples, {analog_per_frame} per frame)"
-            )
-        n_analogs = n_analog // analog_per_frame
-        for pname in ("SCALE", "OFFSET"):
-            n = count("ANALOG", pname)
-            if n is None or n < n_analogs:
-                raise bad(f"ANALOG:{pname} has {n or 0} entries for {n_analogs} analog channels")
-        analog_used = int_value("ANALOG", "USED")
-        if analog_used is not None and analog_used != n_analogs:
-            raise bad(f"the header implies {n_analogs} analog channels but ANALOG:USED says {analog_used}")
-    if data_start <= param_block:
-        raise bad(f"the header puts the data at block {data_start}, not after the parameters (corrupt)")
-    data_offset = (data_start - 1) * 512
-    if data_offset > size:
-        raise bad(f"the header puts the data at block {data_start}, beyond the end of the file (truncated)")
-    if (int_value("ROTATION", "USED") or 0) > 0:
-        rot_start = int_value("ROTATION", "DATA_START") or 0
-        rot_ratio = int_value("ROTATION", "RATIO") or 0
-        if not (data_start <= rot_start and (rot_start - 1) * 512 <= size) or rot_ratio < 1:
-            raise bad("the ROTATION parameters point outside the file (truncated or corrupt)")
-    if last < first:
-        raise bad(f"the header's frame range {first}..{last} is inverted (corrupt)")
-
-    if last == 0xFFFF:
-        return _C3DLayout(n_points=n_points, declared_frames=None)
-    # ezc3d stores points as float when POINT:SCALE is negative (-1 when the parameter is
-    # missing), whatever the header's copy of the scale says; size the frames the same way.
-    scale_entry = by_group.get("POINT", {}).get("SCALE")
-    if scale_entry is None:
-        scale_is_float = True
-    elif scale_entry[0] == 4:
-        scale_is_float = bool(scale_entry[2][3 if processor == 84 else 1] & 0x80)
-    else:
-        scale_is_float = sword.unpack_from(scale_entry[2].ljust(2, b"\0"), 0)[0] < 0
-    n_frames = (last - first + 1) if first != 0 else last + 1
-    frame_bytes = (4 * n_points + n_analog) * (4 if scale_is_float else 2)
-    needed = data_offset + n_frames * frame_bytes
-    if size < needed:
-        complete = (size - data_offset) // frame_bytes if frame_bytes else 0
-        raise bad(
-            f"the file is truncated: its header declares {n_frames} frames ({needed} bytes) "
-            f"but the file has {size} bytes, {complete} complete frames"
-        )
-    return _C3DLayout(n_points=n_points, declared_frames=n_frames)
-
-
 def _read_c3d(p: Path, unit_override: str | None) -> MarkerSequence:
     path = str(p)
     try:
-        layout = _c3d_layout(p)
+        layout = c3d_layout(p)
     except OSError as exc:
         raise FileFormatError(f"cannot read the file ({exc.strerror})", path=path) from None
     import ezc3d
 
+    if layout.note:
+        warnings.warn(f"{path}: {layout.note}", FacecapWarning, stacklevel=3)
+    # Where ezc3d on its own would read other markers or fewer frames than the file
+    # holds, it reads a corrected copy (POINT:USED set to the file's marker count,
+    # POINT:FRAMES to -1 so that it reads to the end) and the take is cut to length.
+    patch_used = layout.n_points != layout.ezc3d_points
+    patch_frames = patch_used or layout.ezc3d_frames < layout.n_frames
+    if (patch_used and layout.used_param is None) or (patch_frames and layout.frames_param is None):
+        raise FileFormatError(
+            f"the file holds {layout.n_frames} frames of {layout.n_points} markers but ezc3d would read "
+            f"{layout.ezc3d_frames} of {layout.ezc3d_points}, and a parameter to correct is missing",
+            path=path,
+        )
+    if layout.drop_analogs and layout.analog_used_param is None:
+        raise FileFormatError("ANALOG:SCALE or ANALOG:OFFSET is missing for the analog channels", path=path)
     try:
-        c3d = ezc3d.c3d(path)
+        if layout.processor == MIPS or patch_frames or layout.drop_analogs:
+            data = p.read_bytes()
+            if layout.processor == MIPS:
+                data = big_endian_to_intel(data, layout)
+            if patch_frames:
+                data = _corrected_counts(data, layout, patch_used)
+            if layout.drop_analogs:
+                data = _points_only(data, layout)
+            with tempfile.TemporaryDirectory(prefix="facecap-c3d-") as folder:
+                copy = Path(folder) / "intel.c3d"
+                copy.write_bytes(data)
+                c3d = ezc3d.c3d(str(copy))
+        else:
+            c3d = ezc3d.c3d(path)
         points = np.asarray(c3d["data"]["points"], dtype=np.float64)
         residual = np.asarray(c3d["data"]["meta_points"]["residuals"], dtype=np.float64)
         point_params = c3d["parameters"]["POINT"]
@@ -687,19 +530,22 @@ def _read_c3d(p: Path, unit_override: str | None) -> MarkerSequence:
         raise FileFormatError(f"not a readable C3D file ({reason})", path=path) from None
 
     n_points = layout.n_points
+    n_frames = layout.n_frames
     if points.ndim != 3 or points.shape[0] < 3 or points.shape[1] != n_points:
         raise FileFormatError(
             f"the C3D reader returned point data of shape {points.shape} for {n_points} markers", path=path
         )
-    n_frames = points.shape[2]
-    if layout.declared_frames is not None and n_frames != layout.declared_frames:
+    if points.shape[2] < n_frames:
         raise FileFormatError(
-            f"the header declares {layout.declared_frames} frames but only {n_frames} could be read "
+            f"the file declares {n_frames} frames but only {points.shape[2]} could be read "
             "(truncated or corrupt)",
             path=path,
         )
     if n_frames == 0:
         raise FileFormatError("the file holds no frames", path=path)
+    # ezc3d reads to the end of the file when POINT:FRAMES is negative as a signed word
+    # (takes of 32768-65535 frames, or patched above): drop what follows the take.
+    points = points[:, :, :n_frames]
 
     labels: list[str] = []
     k = 1
@@ -709,7 +555,9 @@ def _read_c3d(p: Path, unit_override: str | None) -> MarkerSequence:
             break
         labels.extend(str(s).strip() for s in point_params[key]["value"])
         k += 1
-    labels = labels[:n_points] + [f"unlabeled_point_{i}" for i in range(len(labels), n_points)]
+    labels = labels[:n_points] + [""] * (n_points - len(labels))
+    labels = [s if s else f"unlabeled_point_{i}" for i, s in enumerate(labels)]
+    labels, subjects = _c3d_labels(labels, path)
 
     rate = float(np.ravel(point_params["RATE"]["value"])[0]) if np.size(point_params["RATE"]["value"]) else 0.0
     if not (math.isfinite(rate) and rate > 0):
@@ -721,14 +569,121 @@ def _read_c3d(p: Path, unit_override: str | None) -> MarkerSequence:
     if "UNITS" in point_params:
         units = [str(u).strip() for u in np.ravel(point_params["UNITS"]["value"])]
         stated = next((u for u in units if u), None)
-    file_unit = _file_unit(stated, unit_override, path, "POINT:UNITS")
+    file_unit = _file_unit(_c3d_unit(stated), unit_override, path, "POINT:UNITS")
 
     xyz = np.ascontiguousarray(points[:3].transpose(2, 1, 0))  # (T, M, 3)
-    res = residual[0].T if residual.ndim == 3 and residual.shape[1:] == (n_points, n_frames) else np.zeros(
-        (n_frames, n_points)
-    )
+    if residual.ndim == 3 and residual.shape[1] == n_points and residual.shape[2] >= n_frames:
+        res = residual[0, :, :n_frames].T
+    else:
+        res = np.zeros((n_frames, n_points))
     occluded = (res < 0) | np.isnan(xyz).any(axis=2) | (xyz == 0.0).all(axis=2)
     xyz[occluded] = np.nan
     res = np.where(occluded, np.nan, res)
     first_frame = int(header.get("first_frame", 0))
-    return _make_sequence(xyz, labels, rate, file_unit, path, first_frame, res)
+    return _make_sequence(xyz, labels, rate, file_unit, path, first_frame, res, subjects)
+
+
+def _corrected_counts(data: bytes, layout: C3DLayout, patch_used: bool) -> bytes:
+    """A copy whose POINT:FRAMES makes ezc3d read to the end of the file (and POINT:USED
+    the file's marker count if ``patch_used``).
+
+    ezc3d takes ``POINT:FRAMES`` as a signed word (a take of 70000 frames wraps to
+    4464); -1 makes it read every frame to the end, and the caller keeps the first
+    ``layout.n_frames``. The values are written in Intel order: ``data`` is an Intel
+    or DEC file, or already converted from big-endian.
+    """
+    buf = bytearray(data)
+    if layout.frames_param is not None:
+        at, ptype = layout.frames_param
+        if ptype == 2:
+            buf[at : at + 2] = struct.pack("<h", -1)
+        elif ptype == 4:  # a float POINT:FRAMES (DEC floats are not written: ezc3d reads -1 too)
+            buf[at : at + 4] = struct.pack("<f", -1.0) if layout.processor != DEC else bytes([0x80, 0xC0, 0, 0])
+        else:
+            buf[at : at + 1] = b"\xff"
+    if patch_used and layout.used_param is not None:
+        at, ptype = layout.used_param
+        if ptype == 2:
+            buf[at : at + 2] = struct.pack("<h", layout.n_points)
+        elif ptype == 1:
+            buf[at : at + 1] = bytes([layout.n_points & 0xFF])
+    return bytes(buf)
+
+
+def _points_only(data: bytes, layout: C3DLayout) -> bytes:
+    """A copy without analog samples (ANALOG:USED and the header's analog count 0).
+
+    For files whose analog parameters would crash ezc3d; the markers are unchanged.
+    ``data`` is in Intel or DEC order (converted from big-endian before).
+    """
+    buf = bytearray(data)
+    struct.pack_into("<H", buf, 4, 0)  # header: analog samples per frame
+    if layout.analog_used_param is not None:
+        at, ptype = layout.analog_used_param
+        buf[at : at + (2 if ptype == 2 else 1)] = bytes(2 if ptype == 2 else 1)
+    point_bytes = 4 * layout.n_points * (4 if layout.points_are_float else 2)
+    start, step = layout.data_offset, layout.frame_bytes
+    n = (len(buf) - start) // step if step else 0
+    frames = np.frombuffer(bytes(buf[start : start + n * step]), dtype=np.uint8).reshape(n, step)
+    return bytes(buf[:start]) + frames[:, :point_bytes].tobytes()
+
+
+def _c3d_unit(stated: str | None) -> str | None:
+    """POINT:UNITS, completed where a writer cut the word to the parameter's width.
+
+    Some writers (c3d.org sample15, from an AMTI/Peak system) store ``'mete'`` in a
+    4-character POINT:UNITS; a cut word that starts only one unit's names is that unit.
+    """
+    if stated is None:
+        return None
+    try:
+        return normalize_unit(stated.strip())
+    except InputError:
+        pass
+    word = stated.strip().lower()
+    spelled = {"millimeter": "mm", "millimetre": "mm", "centimeter": "cm", "centimetre": "cm",
+               "meter": "m", "metre": "m", "inch": "in"}
+    matches = {unit for name, unit in spelled.items() if len(word) >= 3 and name.startswith(word)}
+    return matches.pop() if len(matches) == 1 else stated
+
+
+def _c3d_labels(raw: list[str], path: str) -> tuple[list[str], tuple[str, ...] | None]:
+    """Labels after facecap's handling, and the per-marker subject prefixes.
+
+    Vicon Nexus writes ``Subject:Marker``; the prefix is split off into the
+    subjects when the labels stay unique without it. Duplicate labels (some
+    Motion Analysis, Vicon Workstation and C3D editor exports repeat names)
+    get a ``_2``, ``_3``, ... suffix, with a warning.
+    """
+    subjects: tuple[str, ...] | None = None
+    labels = list(raw)
+    if any(":" in s for s in raw):
+        parts = [s.partition(":") if ":" in s else ("", "", s) for s in raw]
+        stripped = [marker.strip() for _, _, marker in parts]
+        if all(stripped) and len(set(stripped)) == len(stripped):
+            labels = stripped
+            subjects = tuple(subject.strip() for subject, _, _ in parts)
+    seen = set(labels)
+    counts: dict[str, int] = {}
+    renamed: list[str] = []
+    out: list[str] = []
+    for s in labels:
+        counts[s] = counts.get(s, 0) + 1
+        if counts[s] == 1:
+            out.append(s)
+            continue
+        k = counts[s]
+        while f"{s}_{k}" in seen:
+            k += 1
+        new = f"{s}_{k}"
+        seen.add(new)
+        out.append(new)
+        renamed.append(f"{s}->{new}")
+    if renamed:
+        shown = ", ".join(renamed[:6]) + (", ..." if len(renamed) > 6 else "")
+        warnings.warn(
+            f"{path}: {len(renamed)} duplicate C3D marker label(s) renamed ({shown})",
+            FacecapWarning,
+            stacklevel=4,
+        )
+    return out, subjects
