@@ -1,4 +1,4 @@
-"""Read a labelled marker take from C3D, TRC or facecap CSV.
+"""Read a labelled marker take from C3D, TRC, Qualisys TSV, OptiTrack Motive CSV or facecap CSV.
 
 Formats
 -------
@@ -25,6 +25,26 @@ Formats
     ``CameraRate``, ``NumFrames``, ``NumMarkers``, ``Units``, ...) and one of
     their values, a ``Frame#  Time  name1      name2 ...`` line, an
     ``X1 Y1 Z1 X2 ...`` line, then one row per frame. Empty cells are gaps.
+``.tsv``
+    Qualisys Track Manager's 3D export: tab-separated header lines
+    ``NO_OF_FRAMES``, ``NO_OF_CAMERAS``, ``NO_OF_MARKERS``, ``FREQUENCY``
+    (Hz), ``NO_OF_ANALOG``, ``ANALOG_FREQUENCY``, ``DESCRIPTION``,
+    ``TIME_STAMP``, ``DATA_INCLUDED``, ``MARKER_NAMES`` (one name per cell,
+    and newer ``TRAJECTORY_TYPES``), then optionally a column row
+    ``Frame  Time  A X  A Y  A Z ...`` and one row per frame (``Frame`` counts
+    from 1; without the column row a data row is just X Y Z per marker).
+    Coordinates are in mm; an occluded marker is empty or 0, 0, 0.
+``.csv`` from OptiTrack Motive
+    Recognised by its first line, ``Format Version,<v>,Take Name,...`` with
+    key/value pairs among them ``Capture Frame Rate``, ``Export Frame Rate``
+    (the rate used) and ``Length Units`` (``Meters``, ``Centimeters`` or
+    ``Millimeters``; metres if absent). Then a blank row, a ``Type`` row
+    (``Marker``, ``Rigid Body``, ``Rigid Body Marker``, ``Bone``, ...), a
+    ``Name`` row, an ``ID`` row, perhaps a ``Parent`` row, a row saying
+    ``Position``/``Rotation``/``Mean Marker Error`` per column and the
+    ``Frame,Time (Seconds),X,Y,Z,...`` row; then one row per frame (``Frame``
+    from 0). Only the ``Marker`` columns' ``Position`` X, Y, Z are read (not
+    rigid bodies or their markers); a blank cell is a gap.
 ``.csv``
     facecap's own simple format, comma separated::
 
@@ -66,17 +86,19 @@ from ..structures import MarkerSequence
 from ..typing import FloatArray
 from ..units import mm_per_unit, normalize_unit
 from ._c3d_big_endian import big_endian_to_intel
+from ._capture_exports import ParsedExport, is_motive_csv, parse_motive_csv, parse_qualisys_tsv
 from ._c3d_check import DEC, MIPS, C3DLayout, c3d_layout
 
 __all__ = ["read_markers"]
 
-_SUFFIXES = (".c3d", ".trc", ".csv")
+_SUFFIXES = (".c3d", ".trc", ".csv", ".tsv")
 
 
 def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> MarkerSequence:
-    """Read a marker take from a ``.c3d``, ``.trc`` or ``.csv`` file, in millimetres.
+    """Read a marker take from a ``.c3d``, ``.trc``, ``.tsv`` or ``.csv`` file, in millimetres.
 
-    The format is chosen by the file's suffix (case-insensitive); see the
+    The format is chosen by the file's suffix (case-insensitive), and for
+    ``.csv`` by its first line (OptiTrack Motive or facecap's own); see the
     module docstring for what each format holds and how gaps are written.
 
     Parameters
@@ -85,9 +107,10 @@ def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> Ma
         The file to read.
     unit : {'mm', 'cm', 'm', 'in'} or None, optional
         Length unit of the coordinates in the file. Default None takes the
-        unit the file states (C3D ``POINT:UNITS``, TRC ``Units``, CSV
-        ``# unit=``), or ``'mm'`` if it states none. Give it to override a file
-        whose stated unit is wrong.
+        unit the file states (C3D ``POINT:UNITS``, TRC ``Units``, Motive
+        ``Length Units``, CSV ``# unit=``; QTM ``.tsv`` is mm), or ``'mm'`` if
+        it states none (Motive: ``'m'``). Give it to override a file whose
+        stated unit is wrong.
 
     Returns
     -------
@@ -154,7 +177,17 @@ def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> Ma
     text = _read_text(p)
     if suffix == ".trc":
         return _read_trc(text, name, unit_override)
+    if suffix == ".tsv":
+        return _from_export(parse_qualisys_tsv(text, name), name, unit_override, "the QTM export (mm)")
+    if is_motive_csv(text):
+        return _from_export(parse_motive_csv(text, name), name, unit_override, "line 1: Length Units")
     return _read_csv(text, name, unit_override)
+
+
+def _from_export(parsed: ParsedExport, path: str, unit_override: str | None, where: str) -> MarkerSequence:
+    labels, subjects = _c3d_labels(parsed.labels, path)
+    file_unit = _file_unit(parsed.unit, unit_override, path, where)
+    return _make_sequence(parsed.positions, labels, parsed.rate, file_unit, path, parsed.first_frame, None, subjects)
 
 
 # --------------------------------------------------------------------------- shared
@@ -650,9 +683,9 @@ def _c3d_unit(stated: str | None) -> str | None:
 def _c3d_labels(raw: list[str], path: str) -> tuple[list[str], tuple[str, ...] | None]:
     """Labels after facecap's handling, and the per-marker subject prefixes.
 
-    Vicon Nexus writes ``Subject:Marker``; the prefix is split off into the
-    subjects when the labels stay unique without it. Duplicate labels (some
-    Motion Analysis, Vicon Workstation and C3D editor exports repeat names)
+    Vicon Nexus, ART and OptiTrack Motive write ``Subject:Marker``; the prefix is
+    split off into the subjects when the labels stay unique without it. Duplicate
+    labels (some Motion Analysis, Vicon Workstation and C3D editor exports repeat names)
     get a ``_2``, ``_3``, ... suffix, with a warning.
     """
     subjects: tuple[str, ...] | None = None
@@ -682,7 +715,7 @@ def _c3d_labels(raw: list[str], path: str) -> tuple[list[str], tuple[str, ...] |
     if renamed:
         shown = ", ".join(renamed[:6]) + (", ..." if len(renamed) > 6 else "")
         warnings.warn(
-            f"{path}: {len(renamed)} duplicate C3D marker label(s) renamed ({shown})",
+            f"{path}: {len(renamed)} duplicate marker label(s) renamed ({shown})",
             FacecapWarning,
             stacklevel=4,
         )
