@@ -50,7 +50,11 @@ def test_markers_are_reproduced_and_output_is_streamed(capture_case, tmp_path):
 def test_batch_size_does_not_change_the_result(capture_case, tmp_path):
     _run(capture_case, tmp_path / "a", batch_frames=1)
     _run(capture_case, tmp_path / "b", batch_frames=7)
-    np.testing.assert_array_equal(np.load(tmp_path / "a" / "vertices.npy"), np.load(tmp_path / "b" / "vertices.npy"))
+    # Equal to float32 rounding: MKL's sgemm takes other kernels for 1-row and 7-row blocks, which
+    # round the last bit differently (4e-6 mm at 54 mm, one unit in the last place, seen with the
+    # MKL that pip installs today); anything the batching got wrong would be millimetres.
+    np.testing.assert_allclose(np.load(tmp_path / "a" / "vertices.npy"), np.load(tmp_path / "b" / "vertices.npy"),
+                               rtol=0, atol=2e-5)
 
 
 def test_head_stabilisation_removes_head_motion(capture_case_head_motion, tmp_path):

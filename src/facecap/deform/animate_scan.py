@@ -82,7 +82,7 @@ def prepare_markers(
     correspondence: Correspondence,
     *,
     rest_frame: int = 0,
-    stabilize: bool | Sequence[str] = False,
+    stabilize: bool | str | Sequence[str] = False,
     smooth: bool = True,
 ) -> PreparedMarkers:
     """Match, gap-fill, stabilise and filter a take for :func:`animate_scan`.
@@ -193,7 +193,7 @@ def animate_scan(
     rest_frame: int = 0,
     ks: float = DEFAULT_KS,
     kb: float = DEFAULT_KB_MM2,
-    stabilize: bool | Sequence[str] = False,
+    stabilize: bool | str | Sequence[str] = False,
     smooth: bool = True,
     marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
     rest_average_s: float = DEFAULT_REST_AVERAGE_S,
