@@ -481,3 +481,22 @@ class _tmp:
 
     def __exit__(self, *exc):
         self._d.cleanup()
+
+
+def test_c3d_qualisys_style_parameter_section_reads(tmp_path):
+    # Qualisys Track Manager writes 0, 0 as the parameter section's first two bytes (the
+    # specification's "first parameter block" and key byte) and parameter names with lower-case
+    # letters and spaces; ezc3d ignores both, and so must the pre-check (it refused such files).
+    rng = np.random.default_rng(11)
+    xyz, labels = _take(rng, T=20, M=3)
+    data = bytearray(_ezc3d_file(tmp_path / "plain.c3d", xyz, labels, 100.0).read_bytes())
+    section = (data[0] - 1) * 512
+    data[section], data[section + 1] = 0, 0
+    name = data.index(b"DESCRIPTIONS")  # a name ezc3d reads but facecap does not need
+    data[name : name + 12] = b"Descr iption"
+    path = tmp_path / "qualisys_style.c3d"
+    path.write_bytes(bytes(data))
+    reference = ezc3d.c3d(str(path))["data"]["points"]
+    take = read_markers(path)
+    assert take.labels == tuple(labels) and take.n_frames == 20
+    np.testing.assert_allclose(take.positions, np.transpose(reference[:3], (2, 1, 0)), rtol=1e-6)

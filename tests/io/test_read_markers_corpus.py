@@ -40,7 +40,6 @@ BIG_ENDIAN = {
 }
 # Files read with a FacecapWarning, and what it says.
 WARNS = {
-    "optotrak_ezc3d.c3d": "ends exactly after frame 29",
     "motionanalysis_Walk1.c3d": "duplicate marker label",
     "motionanalysis_MACsample_sgi.c3d": "duplicate marker label",
     "c3dorg_s28_dynamic.c3d": "duplicate marker label",
