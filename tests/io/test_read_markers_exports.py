@@ -112,3 +112,17 @@ def test_facecap_csv_still_read_beside_motive_sniffing(tmp_path):
     path.write_text("# rate=100\nframe,time,a_x,a_y,a_z\n0,0,1,2,3\n1,0.01,4,5,6\n")
     take = read_markers(path)
     assert take.labels == ("a",) and take.positions[1, 0].tolist() == [4.0, 5.0, 6.0]
+
+
+def test_facecap_info_describes_a_qtm_tsv(tmp_path, capsys):
+    from facecap.cli import main
+
+    rng = np.random.default_rng(12)
+    P, gaps = _known_take(rng)
+    labels = ["Chin", "NoseTip", "BrowL"]
+    path = tmp_path / "take.tsv"
+    path.write_text(_qtm_tsv(P, gaps, labels, 100.0))
+    capsys.readouterr()
+    assert main(["info", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "100" in out and all(label in out for label in labels)

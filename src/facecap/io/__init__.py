@@ -27,7 +27,7 @@ function; reach a module itself with ``importlib.import_module``.
 from __future__ import annotations
 
 from .read_correspondence import Correspondence, CorrespondenceMatch, match_correspondence, read_correspondence
-from .read_markers import read_markers
+from .read_markers import MARKER_SUFFIXES, read_markers
 from .read_mesh import read_mesh
 from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditioned_take, write_conditioned_take
 from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
@@ -41,6 +41,7 @@ __all__ = [
     "read_mesh",
     "write_mesh",
     "read_markers",
+    "MARKER_SUFFIXES",
     "write_markers",
     "read_correspondence",
     "match_correspondence",

@@ -89,9 +89,10 @@ from ._c3d_big_endian import big_endian_to_intel
 from ._capture_exports import ParsedExport, is_motive_csv, parse_motive_csv, parse_qualisys_tsv
 from ._c3d_check import DEC, MIPS, C3DLayout, c3d_layout
 
-__all__ = ["read_markers"]
+__all__ = ["read_markers", "MARKER_SUFFIXES"]
 
-_SUFFIXES = (".c3d", ".trc", ".csv", ".tsv")
+MARKER_SUFFIXES = (".c3d", ".trc", ".csv", ".tsv")
+"""File suffixes :func:`read_markers` reads (the format is chosen by the suffix; ``.csv`` is sniffed)."""
 
 
 def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> MarkerSequence:
@@ -163,9 +164,9 @@ def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> Ma
     p = Path(os.fspath(path))
     name = str(p)
     suffix = p.suffix.lower()
-    if suffix not in _SUFFIXES:
+    if suffix not in MARKER_SUFFIXES:
         raise FileFormatError(
-            f"unsupported marker file suffix {p.suffix!r}; expected one of {', '.join(_SUFFIXES)}",
+            f"unsupported marker file suffix {p.suffix!r}; expected one of {', '.join(MARKER_SUFFIXES)}",
             path=name,
         )
     if not p.exists():

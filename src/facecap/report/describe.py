@@ -8,10 +8,10 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError
+from ..io.read_markers import MARKER_SUFFIXES
 
 __all__ = ["describe_file"]
 
-MARKER_SUFFIXES = (".c3d", ".trc", ".csv")
 MESH_SUFFIXES = (".obj", ".ply", ".glb", ".gltf")
 
 
@@ -21,7 +21,7 @@ def describe_file(path: str | Path, *, unit: str | None = None) -> dict[str, Any
     Parameters
     ----------
     path : str or Path
-        A ``.c3d``/``.trc``/``.csv`` take, an ``.obj``/``.ply``/``.glb`` mesh,
+        A ``.c3d``/``.trc``/``.csv``/``.tsv`` take, an ``.obj``/``.ply``/``.glb`` mesh,
         or a folder written by ``facecap animate``.
     unit : str, optional
         Length unit of a mesh file (mesh files do not say); default mm. For a
