@@ -11,7 +11,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .errors import MarkerError
+from .errors import MarkerError, MeshError
 from .typing import BoolArray, FloatArray, IntArray
 from .units import mm_per_unit, normalize_unit
 from .validate import as_faces, as_marker_positions, as_vertices
@@ -44,6 +44,12 @@ class Mesh:
         already converted to mm.
     source_path : str or None
         The file the mesh was read from.
+    vertex_colors : (n, 3) float32 array in [0, 1], or None
+        Per-vertex RGB colour as stored in the file, i.e. sRGB-encoded (not
+        linear light), scaled to [0, 1]; None (default) when the mesh has no
+        colours. Readers convert 8-bit values (0..255) before building the mesh.
+        Kept by :meth:`with_vertices` (the colours belong to the vertices, not
+        to their positions).
     """
 
     vertices: FloatArray
@@ -54,10 +60,15 @@ class Mesh:
     uv_indices: IntArray | None = None
     source_unit: str = "mm"
     source_path: str | None = None
+    vertex_colors: FloatArray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         V = as_vertices(self.vertices, name="vertices")
         object.__setattr__(self, "vertices", V)
+        if self.vertex_colors is not None:
+            object.__setattr__(
+                self, "vertex_colors", _as_vertex_colors(self.vertex_colors, V.shape[0])
+            )
         object.__setattr__(self, "faces", as_faces(self.faces, V.shape[0], name="faces"))
         object.__setattr__(self, "source_unit", normalize_unit(self.source_unit, name="source_unit"))
         if (self.polygon_sizes is None) != (self.polygon_indices is None):
@@ -93,6 +104,28 @@ class Mesh:
     def with_vertices(self, vertices: FloatArray) -> "Mesh":
         """A copy of this mesh with other vertex positions (mm), same topology."""
         return replace(self, vertices=vertices)
+
+
+def _as_vertex_colors(C: object, n_vertices: int) -> np.ndarray:
+    """``C`` as a C-contiguous (n, 3) float32 array of finite values in [0, 1], or raise."""
+    try:
+        arr = np.asarray(C, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise MeshError(
+            f"vertex_colors: expected an ({n_vertices}, 3) array of numbers, got {type(C).__name__}"
+        ) from None
+    if arr.shape != (n_vertices, 3):
+        raise MeshError(
+            f"vertex_colors: expected shape ({n_vertices}, 3) (one RGB per vertex), got {arr.shape}"
+        )
+    if not np.all(np.isfinite(arr)):
+        raise MeshError("vertex_colors: expected finite values, got NaN or infinity")
+    if arr.size and (arr.min() < 0.0 or arr.max() > 1.0):
+        raise MeshError(
+            f"vertex_colors: expected values in [0, 1], got [{arr.min():.6g}, {arr.max():.6g}] "
+            "(divide 8-bit colours by 255)"
+        )
+    return np.ascontiguousarray(arr, dtype=np.float32)
 
 
 @dataclass(frozen=True, eq=False)

@@ -26,7 +26,7 @@ v 0 0 0
 v 1 0 0
 v 2 0 0   # an inline comment
 v 0 1 0
-v 1 1 0 0.5 0.5 0.5
+v 1 1 0 1.0
 v 2 1 0\r
 v 1 2 0.25
 vt 0 0
@@ -235,6 +235,115 @@ def test_partial_uvs_are_dropped_with_a_warning(tmp_path: Path) -> None:
         mesh = read_mesh(write(tmp_path / "partial.obj", text))
     assert mesh.uvs is None and mesh.uv_indices is None
     np.testing.assert_array_equal(mesh.faces, [[0, 1, 2], [1, 3, 2]])
+
+
+# ----------------------------------------------------------------------------- vertex colours
+
+COLOR_OBJ = """\
+v 0 0 0 1 0 0
+v 1 0 0 0 0.5 0
+v 0 1 0   0 0 0.25  # blue
+v 1 1 0 0.125 0.375 1.0
+f 1 2 3
+f 2 4 3
+"""
+
+
+def test_obj_vertex_colours_from_hand_written_text(tmp_path: Path) -> None:
+    mesh = read_mesh(write(tmp_path / "colour.obj", COLOR_OBJ))
+    np.testing.assert_array_equal(mesh.vertices, [[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]])
+    np.testing.assert_array_equal(
+        mesh.vertex_colors, np.array([[1, 0, 0], [0, 0.5, 0], [0, 0, 0.25], [0.125, 0.375, 1]],
+                                     dtype=np.float32),
+    )
+    assert mesh.vertex_colors.dtype == np.float32
+
+
+def test_obj_8bit_vertex_colours_are_divided_by_255(tmp_path: Path) -> None:
+    text = "v 0 0 0 255 0 0\nv 1 0 0 0 51 0\nv 0 1 0 0 0 1\nf 1 2 3\n"
+    mesh = read_mesh(write(tmp_path / "c8.obj", text))
+    np.testing.assert_allclose(mesh.vertex_colors, [[1, 0, 0], [0, 0.2, 0], [0, 0, 1 / 255]], atol=1e-7)
+
+
+def test_obj_without_colours_has_none(tmp_path: Path) -> None:
+    mesh = read_mesh(write(tmp_path / "small.obj", SMALL_OBJ))
+    assert mesh.vertex_colors is None
+
+
+def test_obj_with_colours_on_some_vertices_drops_them_with_a_warning(tmp_path: Path) -> None:
+    text = "v 0 0 0 1 0 0\nv 1 0 0\nv 0 1 0 0 0 1\nf 1 2 3\n"
+    with pytest.warns(FacecapWarning, match="only 2 of 3 vertices have colours"):
+        mesh = read_mesh(write(tmp_path / "mixed.obj", text))
+    assert mesh.vertex_colors is None
+    np.testing.assert_array_equal(mesh.vertices, [[0, 0, 0], [1, 0, 0], [0, 1, 0]])
+
+
+def test_obj_colours_out_of_range_are_refused(tmp_path: Path) -> None:
+    with pytest.raises(FileFormatError, match="vertex colours"):
+        read_mesh(write(tmp_path / "bad.obj", "v 0 0 0 -1 0 0\nv 1 0 0 0 0 0\nv 0 1 0 0 0 0\nf 1 2 3\n"))
+
+
+def _colour_ply(fmt: str, kind: str) -> tuple[bytes, np.ndarray]:
+    """A hand-written 4-vertex PLY with ``kind`` ('uchar', 'float', 'double') colours and alpha."""
+    rgb8 = np.array([[255, 0, 0], [0, 128, 0], [0, 0, 7], [10, 20, 30]])
+    head = ["ply", f"format {fmt} 1.0", "element vertex 4", "property float x", "property float y",
+            "property float z", f"property {kind} red", f"property {kind} green", f"property {kind} blue",
+            "property uchar alpha", "element face 2", "property list uchar int vertex_indices",
+            "end_header"]
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], dtype=float)
+    values = rgb8 if kind == "uchar" else rgb8 / 255.0
+    dt = {"uchar": "u1", "float": "f4", "double": "f8"}[kind]
+    if fmt == "ascii":
+        rows = [" ".join([*(repr(float(x)) for x in V[i]), *(str(c) if kind == "uchar" else repr(float(c))
+                                                           for c in values[i]), "255"])
+                for i in range(4)]
+        body = ("\n".join(rows) + "\n3 0 1 2\n3 1 3 2\n").encode()
+    else:
+        e = "<" if fmt == "binary_little_endian" else ">"
+        rec = np.zeros(4, dtype=[("x", e + "f4"), ("y", e + "f4"), ("z", e + "f4"), ("r", e + dt),
+                                 ("g", e + dt), ("b", e + dt), ("a", "u1")])
+        for j, k in enumerate("xyz"):
+            rec[k] = V[:, j]
+        for j, k in enumerate("rgb"):
+            rec[k] = values[:, j]
+        rec["a"] = 255
+        faces = np.array([(3, 0, 1, 2), (3, 1, 3, 2)],
+                         dtype=[("n", "u1"), ("a", e + "i4"), ("b", e + "i4"), ("c", e + "i4")])
+        body = rec.tobytes() + faces.tobytes()
+    return ("\n".join(head) + "\n").encode() + body, rgb8 / 255.0
+
+
+@pytest.mark.parametrize("fmt", ["ascii", "binary_little_endian", "binary_big_endian"])
+@pytest.mark.parametrize("kind", ["uchar", "float", "double"])
+def test_ply_vertex_colours_from_hand_written_file(tmp_path: Path, fmt: str, kind: str) -> None:
+    data, truth = _colour_ply(fmt, kind)
+    path = tmp_path / "colour.ply"
+    path.write_bytes(data)
+    mesh = read_mesh(path)
+    np.testing.assert_allclose(mesh.vertex_colors, truth, atol=1e-7)
+    np.testing.assert_array_equal(mesh.faces, [[0, 1, 2], [1, 3, 2]])
+
+
+def test_ply_vertex_colours_agree_with_trimesh(tmp_path: Path) -> None:
+    data, truth = _colour_ply("binary_little_endian", "uchar")
+    path = tmp_path / "colour.ply"
+    path.write_bytes(data)
+    ours = read_mesh(path).vertex_colors
+    theirs = np.asarray(trimesh.load(path, process=False).visual.vertex_colors)[:, :3] / 255.0
+    np.testing.assert_allclose(ours, theirs, atol=1e-7)
+
+
+def test_glb_vertex_colours_come_from_color_0(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    rgb8 = rng.integers(0, 256, size=(4, 3), dtype=np.uint8)
+    tm = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0]], [[0, 1, 2], [1, 3, 2]],
+                         process=False)
+    tm.visual.vertex_colors = np.c_[rgb8, np.full(4, 255, np.uint8)]
+    tm.export(tmp_path / "c.glb")
+    np.testing.assert_allclose(read_mesh(tmp_path / "c.glb").vertex_colors, rgb8 / 255.0, atol=1e-7)
+    plain = trimesh.Trimesh(tm.vertices, tm.faces, process=False)
+    plain.export(tmp_path / "p.glb")
+    assert read_mesh(tmp_path / "p.glb").vertex_colors is None
 
 
 # ----------------------------------------------------------------------------- PLY

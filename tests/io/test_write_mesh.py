@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from facecap.errors import FileFormatError, InputError
+from facecap.errors import FileFormatError, InputError, MeshError
 from facecap.io.read_mesh import read_mesh
 from facecap.io.write_mesh import _fixed_rows, _join, _number_rows, write_mesh
 from facecap.structures import Mesh
@@ -198,3 +198,46 @@ def test_errors(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="uv_indices"):
         write_mesh(bad_uv, tmp_path / "m.ply")
     assert not any(tmp_path.iterdir())
+
+
+# ----------------------------------------------------------------------------- vertex colours
+
+
+def _coloured_mesh() -> Mesh:
+    rng = np.random.default_rng(11)
+    V = rng.normal(size=(60, 3)) * 30.0
+    F = np.stack([np.arange(58), np.arange(1, 59), np.arange(2, 60)], axis=1)
+    return Mesh(V, F, vertex_colors=rng.random((60, 3)))
+
+
+def test_obj_colour_round_trip(tmp_path: Path) -> None:
+    mesh = _coloured_mesh()
+    back = read_mesh(write_mesh(mesh, tmp_path / "c.obj"))
+    np.testing.assert_allclose(back.vertex_colors, mesh.vertex_colors, atol=1e-6, rtol=0)
+    np.testing.assert_allclose(back.vertices, mesh.vertices, atol=1e-6, rtol=0)
+    first = (tmp_path / "c.obj").read_text().splitlines()[1].split()
+    assert first[0] == "v" and len(first) == 7
+
+
+def test_ply_colour_round_trip_is_within_one_8bit_step(tmp_path: Path) -> None:
+    mesh = _coloured_mesh()
+    back = read_mesh(write_mesh(mesh, tmp_path / "c.ply"))
+    np.testing.assert_allclose(back.vertex_colors, mesh.vertex_colors, atol=0.5 / 255 + 1e-7, rtol=0)
+    np.testing.assert_array_equal(back.vertices, mesh.vertices)
+
+
+def test_ply_colours_are_what_trimesh_reads(tmp_path: Path) -> None:
+    mesh = _coloured_mesh()
+    path = write_mesh(mesh, tmp_path / "c.ply")
+    theirs = np.asarray(trimesh.load(path, process=False).visual.vertex_colors)[:, :3] / 255.0
+    np.testing.assert_allclose(theirs, mesh.vertex_colors, atol=0.5 / 255 + 1e-7, rtol=0)
+
+
+def test_colours_survive_with_vertices_and_validation() -> None:
+    mesh = _coloured_mesh()
+    moved = mesh.with_vertices(mesh.vertices + 1.0)
+    np.testing.assert_array_equal(moved.vertex_colors, mesh.vertex_colors)
+    assert Mesh(mesh.vertices, mesh.faces).vertex_colors is None
+    for bad in (np.ones((59, 3)), np.full((60, 3), 2.0), np.full((60, 3), np.nan)):
+        with pytest.raises(MeshError, match="vertex_colors"):
+            Mesh(mesh.vertices, mesh.faces, vertex_colors=bad)

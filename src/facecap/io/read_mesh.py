@@ -53,13 +53,15 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
         polygons in ``polygon_sizes`` / ``polygon_indices`` when the file
         has any non-triangle (None when it holds triangles only); ``uvs``
         (u, 2) float64 and per-corner ``uv_indices`` when every face corner
-        has a texture coordinate.
+        has a texture coordinate; ``vertex_colors`` (n, 3) float32 in [0, 1]
+        (sRGB-encoded, as stored) when every vertex has a colour, else None.
 
     Raises
     ------
     FileFormatError
         If the file is missing, empty, of an unknown suffix, or holds text
-        or numbers that cannot be parsed (the message names the line).
+        or numbers that cannot be parsed (the message names the line), or
+        vertex colours outside [0, 1] (float) or [0, 255] (8-bit).
     MeshError
         If the file has no faces, or a face refers to a vertex or texture
         coordinate that does not exist (the message names the face and line).
@@ -68,6 +70,8 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
     -----
     FacecapWarning
         If only some face corners have texture coordinates; the UVs are dropped.
+        If only some OBJ vertices have colours; the colours are dropped (the
+        geometry is read as usual).
 
     Notes
     -----
@@ -75,14 +79,21 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
     ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``, 1-based or negative (relative)
     indices, polygons of any size, ``#`` comments and ``\\`` line
     continuations; normals, ``o``, ``g``, ``s``, ``usemtl``, ``mtllib`` and
-    other statements are ignored. Extra vertex columns (``w``, colours) are
-    ignored. Line numbers in messages count physical lines, except after a
+    other statements are ignored. A ``v`` line of 6 numbers ``x y z r g b``
+    (the common colour extension) gives the vertex a colour; colours are read
+    only when every ``v`` line has exactly 6 numbers, as floats in [0, 1], or
+    as 8-bit values divided by 255 when any value exceeds 1. A ``v`` line of 4
+    numbers (``w``) or 7 (``x y z r g b a``) carries no colour read here.
+    Line numbers in messages count physical lines, except after a
     ``\\`` continuation.
 
     PLY: ASCII and binary (either byte order). Reads the ``vertex`` element's
     ``x, y, z`` and texture coordinates (``s, t``, ``u, v``, ``texture_u,
     texture_v`` or ``texture_s, texture_t``) and the ``face`` element's
-    ``vertex_indices`` (or ``vertex_index``) and ``texcoord`` lists; other
+    ``vertex_indices`` (or ``vertex_index``) and ``texcoord`` lists, and the
+    vertex colours ``red, green, blue`` (also ``r, g, b`` or ``diffuse_red,
+    ...``): integer types are divided by their maximum (255 for ``uchar``,
+    65535 for ``ushort``), floats must lie in [0, 1]; alpha is ignored; other
     properties and elements are skipped.
 
     glTF (``.glb``, ``.gltf``): read by trimesh with ``process=False``. Every
@@ -91,7 +102,9 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
     ``meshes`` array, then of each mesh's primitives), so vertex ``i`` of the
     result is vertex ``i - offset`` of its primitive's accessor. A primitive
     used by several nodes (instancing) is refused, since it has no single
-    placement.
+    placement. Vertex colours come from ``COLOR_0`` as trimesh exposes it
+    (``visual.vertex_colors``, 8-bit RGBA), kept only when every primitive has
+    them; trimesh gives no colour for a primitive without ``COLOR_0``.
 
     Examples
     --------
@@ -127,7 +140,7 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
         parts = _read_ply(p)
     else:
         parts = _read_gltf(p)
-    V, sizes, corners, uvs, uv_corners = parts
+    V, sizes, corners, uvs, uv_corners, colors = parts
 
     if not np.all(np.isfinite(V)):
         bad = int(np.flatnonzero(~np.isfinite(V).all(axis=1))[0])
@@ -143,6 +156,7 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
         uv_indices=uv_corners,
         source_unit=unit,
         source_path=str(p),
+        vertex_colors=colors,
     )
 
 
@@ -259,7 +273,10 @@ def _is_corner(token: bytes) -> bool:
     return len(parts) <= 3 and all(_is_int(x) for x in parts)
 
 
-def _read_obj(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray | None, IntArray | None]:
+_MeshParts = tuple[FloatArray, IntArray, IntArray, FloatArray | None, IntArray | None, np.ndarray | None]
+
+
+def _read_obj(path: Path) -> _MeshParts:
     data = path.read_bytes()
     if data.startswith(b"\xef\xbb\xbf"):  # UTF-8 byte-order mark
         data = data[3:]
@@ -284,7 +301,7 @@ def _read_obj(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray | 
     vt = _ObjKind(buf, starts, ends, key0 + 2, np.flatnonzero(is_vt))
     f = _ObjKind(buf, starts, ends, key0 + 1, np.flatnonzero(is_f))
 
-    V = _obj_columns(v, 3, "v (vertex)", path)
+    V, colors = _obj_vertices(v, path)
     UV = _obj_columns(vt, 2, "vt (texture coordinate)", path) if vt.lines.size else None
     if V.shape[0] == 0:
         raise MeshError("the file has no vertices ('v' lines)", path=str(path))
@@ -344,7 +361,37 @@ def _read_obj(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray | 
         )
     if uv_corners is None:
         UV = None
-    return V, sizes.astype(np.int64), corners, UV, uv_corners
+    return V, sizes.astype(np.int64), corners, UV, uv_corners, colors
+
+
+def _obj_vertices(v: _ObjKind, path: Path) -> tuple[FloatArray, np.ndarray | None]:
+    """Vertex positions and, when every ``v`` line has ``x y z r g b``, their colours."""
+    if v.lines.size == 0:
+        return np.zeros((0, 3)), None
+    _, _, counts = v.tokens()
+    six = counts == 6
+    if not six.any():
+        return _obj_columns(v, 3, "v (vertex)", path), None
+    if not six.all():
+        V = _obj_columns(v, 3, "v (vertex)", path)
+        warnings.warn(
+            f"{path}: only {int(six.sum())} of {six.size} vertices have colours "
+            "('v x y z r g b'); the colours are dropped",
+            FacecapWarning,
+            stacklevel=4,
+        )
+        return V, None
+    values = _obj_columns(v, 6, "v (vertex)", path)
+    rgb = values[:, 3:]
+    if not np.all(np.isfinite(rgb)) or rgb.min() < 0 or rgb.max() > 255:
+        raise FileFormatError(
+            "vertex colours ('v x y z r g b') must be finite and in [0, 1] or [0, 255], got "
+            f"[{np.nanmin(rgb):.6g}, {np.nanmax(rgb):.6g}]",
+            path=str(path),
+        )
+    if rgb.max() > 1.0:
+        rgb = rgb / 255.0
+    return np.ascontiguousarray(values[:, :3]), rgb.astype(np.float32)
 
 
 def _obj_columns(kind: _ObjKind, columns: int, name: str, path: Path) -> FloatArray:
@@ -409,7 +456,7 @@ class _PlyProperty:
         self.name, self.dtype, self.count_dtype = name, dtype, count_dtype
 
 
-def _read_ply(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray | None, IntArray | None]:
+def _read_ply(path: Path) -> _MeshParts:
     data = path.read_bytes()
     fmt, elements, body = _ply_header(data, path)
     if fmt == "ascii":
@@ -462,7 +509,35 @@ def _read_ply(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray | 
                 uvs = np.stack([vertex[su], vertex[sv]], axis=1).astype(np.float64)
                 uv_corners = corners
                 break
-    return V, sizes, corners, uvs, uv_corners
+    return V, sizes, corners, uvs, uv_corners, _ply_colors(vertex, path)
+
+
+_PLY_COLOR_NAMES = (("red", "green", "blue"), ("r", "g", "b"),
+                    ("diffuse_red", "diffuse_green", "diffuse_blue"))
+
+
+def _ply_colors(vertex: dict[str, Any], path: Path) -> np.ndarray | None:
+    """(n, 3) float32 colours in [0, 1] from the vertex element's colour properties, or None."""
+    names = next((c for c in _PLY_COLOR_NAMES if all(k in vertex for k in c)), None)
+    if names is None:
+        return None
+    channels = []
+    for k in names:
+        x = np.asarray(vertex[k])
+        if x.dtype.kind in "iu":
+            top = np.iinfo(x.dtype).max
+            if x.size and x.min() < 0:
+                raise FileFormatError(f"vertex colour {k!r} has negative values", path=str(path))
+            channels.append(x.astype(np.float64) / top)
+        else:
+            x = x.astype(np.float64)
+            if not np.all(np.isfinite(x)) or (x.size and (x.min() < 0 or x.max() > 1)):
+                raise FileFormatError(
+                    f"vertex colour {k!r}: float colours must be finite and in [0, 1]",
+                    path=str(path),
+                )
+            channels.append(x)
+    return np.stack(channels, axis=1).astype(np.float32)
 
 
 def _ply_header(data: bytes, path: Path) -> tuple[str, list[tuple[str, int, list[_PlyProperty]]], int]:
@@ -687,7 +762,7 @@ def _ply_walk_binary(data: bytes, pos: int, count: int, props: list[_PlyProperty
 # ----------------------------------------------------------------------------- glTF
 
 
-def _read_gltf(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray | None, IntArray | None]:
+def _read_gltf(path: Path) -> _MeshParts:
     import trimesh
 
     try:
@@ -704,6 +779,7 @@ def _read_gltf(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray |
     Vs: list[np.ndarray] = []
     Fs: list[np.ndarray] = []
     UVs: list[np.ndarray | None] = []
+    Cs: list[np.ndarray | None] = []
     offset = 0
     for name, geom in scene.geometry.items():
         if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
@@ -722,6 +798,7 @@ def _read_gltf(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray |
         Fs.append(np.asarray(geom.faces, dtype=np.int64) + offset)
         uv = getattr(geom.visual, "uv", None)
         UVs.append(None if uv is None or len(uv) != len(V) else np.asarray(uv, dtype=np.float64))
+        Cs.append(_gltf_colors(geom, len(V)))
         offset += len(V)
     if not Vs:
         raise MeshError("the file has no triangle meshes", path=str(path))
@@ -737,4 +814,19 @@ def _read_gltf(path: Path) -> tuple[FloatArray, IntArray, IntArray, FloatArray |
             FacecapWarning,
             stacklevel=3,
         )
-    return V, np.full(F.shape[0], 3, dtype=np.int64), F.reshape(-1), uvs, uv_corners
+    colors = np.concatenate(Cs) if all(c is not None for c in Cs) else None  # type: ignore[arg-type]
+    return V, np.full(F.shape[0], 3, dtype=np.int64), F.reshape(-1), uvs, uv_corners, colors
+
+
+def _gltf_colors(geom: Any, n: int) -> np.ndarray | None:
+    """(n, 3) float32 colours of a trimesh primitive read from ``COLOR_0``, or None."""
+    visual = geom.visual
+    if getattr(visual, "kind", None) != "vertex":  # trimesh's kind for COLOR_0 colours
+        return None
+    c = np.asarray(visual.vertex_colors)
+    if c.ndim != 2 or c.shape[0] != n or c.shape[1] < 3:
+        return None
+    c = c[:, :3]
+    if c.dtype.kind in "iu":
+        return (c.astype(np.float64) / np.iinfo(c.dtype).max).astype(np.float32)
+    return np.clip(c.astype(np.float64), 0.0, 1.0).astype(np.float32)

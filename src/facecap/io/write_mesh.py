@@ -18,6 +18,7 @@ from ._atomic import atomic_path
 __all__ = ["write_mesh"]
 
 _UV_DECIMALS = 9
+_COLOR_DECIMALS = 6
 
 
 def write_mesh(
@@ -71,6 +72,11 @@ def write_mesh(
 
     Notes
     -----
+    Vertex colours (``mesh.vertex_colors``, sRGB-encoded in [0, 1]) are written
+    when the mesh has them: OBJ as ``v x y z r g b`` with 6 decimals, PLY as
+    ``uchar red, green, blue`` (rounded to the nearest of 0..255, so they read
+    back within 1/510). Meshes without colours are written as before.
+
     OBJ: ``v`` lines (no normals), ``vt`` lines and ``f v/vt`` corners when the
     mesh has UVs, 1-based indices, polygons as stored in ``mesh``. Numbers are
     formatted in fixed point by vectorised numpy code (no per-value Python
@@ -126,13 +132,13 @@ def write_mesh(
         payload = _obj_bytes(
             V, sizes, corners,
             mesh.uvs if has_uv else None, mesh.uv_indices if has_uv else None,
-            int(decimals), unit,
+            int(decimals), unit, mesh.vertex_colors,
         )
     else:
         payload = _ply_bytes(
             V, sizes, corners,
             mesh.uvs if has_uv else None, mesh.uv_indices if has_uv else None,
-            unit,
+            unit, mesh.vertex_colors,
         )
     with atomic_path(p) as tmp:
         with open(tmp, "wb") as fh:
@@ -247,14 +253,30 @@ def _pattern(pieces: list[bytes], k: int) -> np.ndarray:
 
 
 def _obj_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArray | None,
-               uv_indices: IntArray | None, decimals: int, unit: str) -> bytes:
+               uv_indices: IntArray | None, decimals: int, unit: str,
+               colors: np.ndarray | None = None) -> bytes:
     parts = [f"# written by facecap; unit: {unit}\n".encode()]
-    # one token per coordinate: "v " before x, " " or "\n" after
-    parts.append(_join(
-        _pattern([b"v ", b"", b""], V.size),
-        _fixed_rows(V.reshape(-1), decimals),
-        _pattern([b" ", b" ", b"\n"], V.size),
-    ))
+    if colors is None:
+        # one token per coordinate: "v " before x, " " or "\n" after
+        parts.append(_join(
+            _pattern([b"v ", b"", b""], V.size),
+            _fixed_rows(V.reshape(-1), decimals),
+            _pattern([b" ", b" ", b"\n"], V.size),
+        ))
+    else:
+        # "v x y z r g b": coordinates and colours as two tables of rows, joined per line
+        n = V.shape[0]
+        xyz = _fixed_rows(V.reshape(-1), decimals)
+        rgb = _fixed_rows(np.asarray(colors, dtype=np.float64).reshape(-1), _COLOR_DECIMALS)
+        xyz_cols = xyz.reshape(xyz.shape[0], n, 3)
+        rgb_cols = rgb.reshape(rgb.shape[0], n, 3)
+        space = np.full((1, n), ord(" "), dtype=np.uint8)
+        fields: list[np.ndarray] = [_pattern([b"v "], n)]
+        for j in range(3):
+            fields += [xyz_cols[:, :, j], space]
+        for j in range(3):
+            fields += [rgb_cols[:, :, j], space if j < 2 else np.full((1, n), ord("\n"), np.uint8)]
+        parts.append(_join(*fields))
     if uvs is not None:
         parts.append(_join(
             _pattern([b"vt ", b""], uvs.size),
@@ -282,7 +304,7 @@ def _obj_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArra
 
 
 def _ply_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArray | None,
-               uv_indices: IntArray | None, unit: str) -> bytes:
+               uv_indices: IntArray | None, unit: str, colors: np.ndarray | None = None) -> bytes:
     n, k = V.shape[0], sizes.size
     vertex_uv = face_uv = None
     if uvs is not None and uv_indices is not None:
@@ -299,6 +321,8 @@ def _ply_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArra
               f"element vertex {n}", "property double x", "property double y", "property double z"]
     if vertex_uv is not None:
         header += ["property float s", "property float t"]
+    if colors is not None:
+        header += ["property uchar red", "property uchar green", "property uchar blue"]
     header += [f"element face {k}", f"property list {count_type} int vertex_indices"]
     if face_uv is not None:
         header.append(f"property list {count_type} float texcoord")
@@ -307,10 +331,15 @@ def _ply_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArra
     vfields = [("x", "<f8"), ("y", "<f8"), ("z", "<f8")]
     if vertex_uv is not None:
         vfields += [("s", "<f4"), ("t", "<f4")]
+    if colors is not None:
+        vfields += [("red", "u1"), ("green", "u1"), ("blue", "u1")]
     vrec = np.empty(n, dtype=np.dtype(vfields))
     vrec["x"], vrec["y"], vrec["z"] = V[:, 0], V[:, 1], V[:, 2]
     if vertex_uv is not None:
         vrec["s"], vrec["t"] = vertex_uv[:, 0], vertex_uv[:, 1]
+    if colors is not None:
+        rgb8 = np.rint(np.asarray(colors, dtype=np.float64) * 255.0).clip(0, 255).astype(np.uint8)
+        vrec["red"], vrec["green"], vrec["blue"] = rgb8[:, 0], rgb8[:, 1], rgb8[:, 2]
 
     # faces: records of [count, indices (int32) [, 2*count, uvs (float32)]], vectorised
     csize = np.dtype(count_dt).itemsize
