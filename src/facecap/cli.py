@@ -195,6 +195,12 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--template", default=None, help="mesh giving the output topology (default: the first scan)")
     p.add_argument("--template-units", default="mm", help="length unit of the template file: mm, cm, m, in or auto [mm]")
     p.add_argument("--marker-offset", type=float, default=1.5, help="marker centre height above the skin, mm [1.5]")
+    p.add_argument("--template-texture", default=None,
+                   help="a coloured scan of the template's expression (e.g. the neutral's own scan), in the "
+                        "template's units: the skin colour the scans are aligned to")
+    p.add_argument("--no-color-alignment", action="store_true",
+                   help="do not slide the registrations along the scans by skin colour (on by default when the "
+                        "scans and the template or --template-texture have vertex colours)")
     p.add_argument("--refine", action="store_true",
                    help="run the fine-scale (optical flow) registration of section 6.2 (experimental)")
     p.add_argument("--out", required=True, help="bases folder")
@@ -216,6 +222,8 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--template", default=None)
     p.add_argument("--template-units", default="mm")
     p.add_argument("--marker-offset", type=float, default=1.5)
+    p.add_argument("--template-texture", default=None, help="coloured scan of the template's expression")
+    p.add_argument("--no-color-alignment", action="store_true", help="no sliding by skin colour")
     p.add_argument("--refine", action="store_true", help="fine-scale registration (experimental)")
     p.add_argument("--export", default="")
     p.add_argument("--out", required=True, help="output folder (holds plan.json, bases/, animation/)")
@@ -243,6 +251,8 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
     report = register_planned_scans(args.plan, args.markers, args.scans, args.out, template_path=args.template,
                                     scan_unit=args.scan_units, template_unit=args.template_units,
                                     marker_offset_mm=args.marker_offset, refine=args.refine,
+                                    template_texture_path=args.template_texture,
+                                    align_colors=False if args.no_color_alignment else None,
                                     progress=not args.quiet)
     if not args.quiet:
         reg = report["registration_mm"]
@@ -275,7 +285,9 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
                    progress=not args.quiet)
     register_planned_scans(plan_path, args.markers, args.scans, out / "bases", template_path=args.template,
                            scan_unit=args.scan_units, template_unit=args.template_units,
-                           marker_offset_mm=args.marker_offset, refine=args.refine, progress=not args.quiet)
+                           marker_offset_mm=args.marker_offset, refine=args.refine,
+                           template_texture_path=args.template_texture,
+                           align_colors=False if args.no_color_alignment else None, progress=not args.quiet)
     exports = _exports_option(args.export)
     report = blend_take(out / "bases", args.markers, out / "animation", exports=exports, progress=not args.quiet)
     if not args.quiet:

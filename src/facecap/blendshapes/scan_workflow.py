@@ -159,10 +159,18 @@ def register_planned_scans(
     template_unit: str = "mm",
     marker_offset_mm: float = 1.5,
     refine: bool = False,
+    template_texture_path: str | Path | None = None,
+    align_colors: bool | None = None,
     marker_unit: str | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:
     """Register one scan per planned frame and write the bases folder.
+
+    Scans with vertex colours are slid along their surfaces until the skin's
+    colours match the template's (``align_colors``, default: whenever the
+    scans and the template, or ``template_texture_path``, a coloured scan of
+    the template's expression in the template's unit, have colours), see
+    :func:`facecap.registration.register_scans`.
 
     ``scan_unit`` and ``template_unit`` are length units, or ``'auto'``: each
     file's size is compared with its frame's markers
@@ -188,11 +196,17 @@ def register_planned_scans(
         read_mesh(template_path, unit=None if auto_template else template_unit),
         conditioned.positions[int(conditioning.get("rest_frame", 0))], convert=auto_template, option="--template-units",
     ) if template_path else None
+    texture = None
+    if template_texture_path is not None:
+        if template is None:
+            raise InputError("--template-texture needs --template (without one the first scan is the template)")
+        texture = read_mesh(template_texture_path, unit=template.source_unit)
     t = time.perf_counter()
     registered = register_scans(
         scans, conditioned.positions[frames], template=template,
         template_markers=conditioned.positions[int(conditioning.get("rest_frame", 0))] if template else None,
-        marker_offset_mm=marker_offset_mm, refine=refine, progress=progress,
+        marker_offset_mm=marker_offset_mm, refine=refine, template_texture=texture, align_colors=align_colors,
+        progress=progress,
     )
     report = {**registered.report, "total_s": time.perf_counter() - t,
               "registration_mm": registered.registration_mm.tolist()}

@@ -9,6 +9,9 @@ In the order a user meets them:
   frame's markers onto a scan, as a :class:`MarkerRegistration`.
 - :func:`register_template_to_scan` (``register_template_to_scan.py``): the
   large-scale template registration of section 6.1, as a :class:`TemplateRegistration`.
+- :func:`align_albedo` (``align_albedo.py``): a registered template slid along
+  its scan until the skin's colours match the template's (tangential
+  correspondence from texture), as an :class:`AlbedoAlignment`.
 - :func:`refine_registration` (``refine_registration.py``): the fine-scale
   optical-flow registration of section 6.2, as a :class:`Refinement`, on the
   :func:`cylindrical_map` (``cylindrical_map.py``) unwrap.
@@ -22,6 +25,7 @@ with ``importlib.import_module``.
 
 from __future__ import annotations
 
+from .align_albedo import DEFAULT_ALBEDO_ITERATIONS, UNSEEN_ANCHOR, AlbedoAlignment, align_albedo
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .refine_registration import Refinement, refine_registration
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
@@ -36,6 +40,10 @@ from .register_template_to_scan import DEFAULT_CLOSEST_POINT_WEIGHTS, TemplateRe
 from .rigid_icp import IcpResult, rigid_icp
 
 __all__ = [
+    "align_albedo",
+    "AlbedoAlignment",
+    "DEFAULT_ALBEDO_ITERATIONS",
+    "UNSEEN_ANCHOR",
     "register_scans",
     "RegisteredScans",
     "DEFAULT_MARKER_OFFSET_MM",

@@ -92,6 +92,20 @@ def _surface_motion(template: Mesh, registered: np.ndarray, matched: np.ndarray)
     return slide, lift
 
 
+def _template_texture(texture: Mesh | None, template: Mesh, tmpl_mocap: Mesh, template_markers: np.ndarray | None,
+                      subspace: np.ndarray, marker_offset_mm: float, deformation_weight: float) -> Mesh | None:
+    """The coloured surface of the template's expression in the mocap frame, or None without colours."""
+    if texture is None:
+        return tmpl_mocap if tmpl_mocap.vertex_colors is not None else None
+    if texture.vertex_colors is None:
+        raise InputError("template_texture has no vertex colours", path=texture.source_path)
+    if template_markers is None:
+        raise InputError("template_texture needs the template's markers (template_markers) to be placed")
+    reg = register_markers_to_scan(template_markers, texture, subspace=subspace, marker_offset_mm=marker_offset_mm,
+                                   deformation_weight=deformation_weight)
+    return _to_mocap(texture, reg)
+
+
 def register_scans(
     scans: Sequence[Mesh],
     frame_markers: np.ndarray,
@@ -100,6 +114,8 @@ def register_scans(
     template_markers: np.ndarray | None = None,
     marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
     refine: bool = False,
+    template_texture: Mesh | None = None,
+    align_colors: bool | None = None,
     flag_threshold_mm: float = 0.2,
     rest_weight: float = DEFAULT_REST_WEIGHT,
     template_deformation_weight: float = TEMPLATE_DEFORMATION_WEIGHT,
@@ -130,6 +146,20 @@ def register_scans(
         template to place the markers on it. Required with ``template``.
     marker_offset_mm : float, default 1.5
         Marker centre height above the skin.
+    template_texture : Mesh, optional
+        A coloured scan of the template's expression (``vertex_colors`` set),
+        in its own scanner frame: typically the neutral's own scan when the
+        template is a retopologised neutral. It is placed like any scan (the
+        template's markers registered onto it). Default: the template itself
+        when it has colours.
+    align_colors : bool, optional
+        Slide every registered scan along its scan until the skin's colours
+        match the template's (:func:`~facecap.registration.align_albedo.align_albedo`):
+        the tangential correspondence geometry cannot give. Default: when the
+        scans and a template texture have colours. On generated scans with
+        skin texture (strong brow and eye expressions of a real-motion take)
+        each basis's error at its own frame fell from 0.38 to 0.28 mm and
+        from 0.23 to 0.17 mm, the forehead's from 0.36 to 0.12 mm.
     refine : bool, default False
         Run the fine-scale registration (section 6.2). Off by default: on the
         generated ICT scans (smooth, few curvature features) it has not yet
@@ -226,6 +256,24 @@ def register_scans(
         report["scans"][i]["large_scale_mm"] = result.mean_distance_mm
         report["scans"][i]["matched_fraction"] = float(result.matched.mean())
     timings["large_scale_registration_s"] = time.perf_counter() - t
+
+    texture = _template_texture(template_texture, template, tmpl_mocap, np.asarray(template_markers, dtype=np.float64)
+                                if template_markers is not None else None, X, marker_offset_mm,
+                                template_deformation_weight)
+    colours = all(s.vertex_colors is not None for s in scans_mocap) and texture is not None
+    if align_colors and not colours:
+        raise InputError("align_colors: the scans and the template (or template_texture) need vertex colours")
+    if colours and align_colors is not False:
+        from .align_albedo import align_albedo
+
+        t = time.perf_counter()
+        up = output_from_mocap[:3, :3].T @ np.array([0.0, 1.0, 0.0])
+        for i in tqdm(range(K), desc="colour alignment", disable=not progress, leave=False):
+            aligned = align_albedo(registered[i], template.faces, tmpl_mocap.vertices, texture, scans_mocap[i], axis=up)
+            registered[i] = aligned.vertices
+            report["scans"][i]["colour_alignment_moved_mm"] = {
+                "mean": float(aligned.moved_mm.mean()), "max": float(aligned.moved_mm.max())}
+        timings["colour_alignment_s"] = time.perf_counter() - t
 
     if refine and K > 1:
         from .refine_registration import refine_registration
