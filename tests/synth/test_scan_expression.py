@@ -176,3 +176,51 @@ def test_bad_input_is_named(expression) -> None:
     square_F = np.array([[0, 1, 2], [0, 2, 3]])
     with pytest.raises(MeshError, match="faces the scanner"):
         scan_expression(square_V, square_F, target_vertices=2000, view_direction=[0.0, 0.0, 1.0])  # from behind
+
+
+# ----------------------------------------------------------------------------- colours
+
+LUMA = np.array([0.2126, 0.7152, 0.0722])
+
+
+@pytest.fixture(scope="module")
+def two_poses() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The rest face, its most displaced expression of a take (14 mm here), and the faces."""
+    case = generate_performance(n_frames=60, seed=3, gap_fraction=0.0)
+    disp = np.linalg.norm(case.truth_vertices - case.scan.vertices, axis=2).max(axis=1)
+    assert disp.max() > 5.0
+    return case.scan.vertices, case.truth_vertices[int(np.argmax(disp))].astype(np.float64), case.scan.faces
+
+
+def test_colour_option_keeps_the_geometry_bit_for_bit(two_poses) -> None:
+    rest, V, F = two_poses
+    plain = scan_expression(V, F, target_vertices=8000, seed=4)
+    coloured = scan_expression(V, F, target_vertices=8000, seed=4, material_points=rest)
+    assert plain.mesh.vertex_colors is None
+    np.testing.assert_array_equal(coloured.mesh.vertices, plain.mesh.vertices)
+    np.testing.assert_array_equal(coloured.mesh.faces, plain.mesh.faces)
+    np.testing.assert_array_equal(coloured.barycentric, plain.barycentric)
+    np.testing.assert_array_equal(coloured.scanner_from_face, plain.scanner_from_face)
+    c = coloured.mesh.vertex_colors
+    assert c.shape == (coloured.mesh.n_vertices, 3) and c.dtype == np.float32
+
+
+def test_colour_follows_the_material_point_not_the_posed_position(two_poses) -> None:
+    from facecap.synth.capture_colors import srgb_decode
+    from facecap.synth.skin_albedo import skin_albedo
+
+    rest, V, F = two_poses
+    fits = []
+    for pose, seed in ((rest, 1), (V, 2)):
+        scan = scan_expression(pose, F, target_vertices=8000, seed=seed, material_points=rest, albedo_seed=7)
+        material = np.einsum("kc,kcd->kd", scan.barycentric, rest[F[scan.source_faces]])
+        linear = srgb_decode(scan.mesh.vertex_colors)
+        # recorded / true albedo at the material point: exposure x smooth shading (+-8 %) and noise only
+        ratio = (linear / skin_albedo(material, seed=7)) @ LUMA
+        posed = (linear / skin_albedo(scan.surface_points, seed=7)) @ LUMA
+        assert 0.75 < np.median(ratio) < 1.3
+        assert ratio.std() / np.median(ratio) < 0.06
+        fits.append((ratio.std(), posed.std()))
+    # at rest the two coincide; in the expression the posed position is the wrong skin
+    assert fits[0][0] == pytest.approx(fits[0][1], rel=1e-6)
+    assert fits[1][1] > 1.2 * fits[1][0]

@@ -20,6 +20,11 @@ In the order a user meets them:
   :func:`boundary_vertices` (``marker_layout.py``): where the virtual markers go.
 - :func:`scan_expression` (``scan_expression.py``): an expression "scanned" the
   way a range scanner would, as a :class:`ScannedExpression`.
+- :func:`skin_albedo`, :class:`SkinRegions`, :data:`BASE_SKIN_TONE`
+  (``skin_albedo.py``): the skin's linear reflectance as a solid texture of
+  the material point; :func:`capture_colors`, :func:`srgb_encode`,
+  :func:`srgb_decode` (``capture_colors.py``): what a scanner's camera
+  records of it (exposure, shading, noise, sRGB), for ``Mesh.vertex_colors``.
 - :func:`write_synthetic_case`, :func:`write_planned_scans`
   (``write_synthetic_case.py``): a case on disk as a user would hold it
   (scan, take, map, truth), as :class:`CaseFiles`.
@@ -36,10 +41,12 @@ from .generate_performance import (
     named_curves,
     vertex_normals_at,
 )
+from .capture_colors import capture_colors, srgb_decode, srgb_encode
 from .ict_sample import IctSample, bundled_path, load_ict_sample
 from .marker_layout import animface_marker_map, boundary_vertices, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, RealCurveFit, load_real_curve_fit, real_motion_curves
 from .scan_expression import ScannedExpression, scan_expression
+from .skin_albedo import BASE_SKIN_TONE, SkinRegions, skin_albedo
 from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
 from .write_synthetic_case import CaseFiles, write_planned_scans, write_synthetic_case
 
@@ -67,6 +74,12 @@ __all__ = [
     "boundary_vertices",
     "scan_expression",
     "ScannedExpression",
+    "skin_albedo",
+    "SkinRegions",
+    "BASE_SKIN_TONE",
+    "capture_colors",
+    "srgb_encode",
+    "srgb_decode",
     "write_synthetic_case",
     "write_planned_scans",
     "CaseFiles",

@@ -17,6 +17,8 @@ from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from ..units import normalize_unit
 from ..validate import as_faces, as_positive, as_rigid_transform, as_vertices
+from .capture_colors import capture_colors
+from .skin_albedo import SkinRegions, skin_albedo
 
 __all__ = ["ScannedExpression", "scan_expression"]
 
@@ -146,6 +148,9 @@ def scan_expression(
     view_direction: FloatArray | None = None,
     scanner_from_face: FloatArray | None = None,
     unit: str = "mm",
+    material_points: FloatArray | None = None,
+    albedo_seed: int = 0,
+    skin_regions: SkinRegions | None = None,
 ) -> ScannedExpression:
     """Scan a triangle mesh as a range scanner would: new sampling, noise, holes, rim crop, own frame.
 
@@ -198,6 +203,23 @@ def scan_expression(
     unit : {'mm', 'cm', 'm', 'in'}, default 'mm'
         The unit recorded as ``mesh.source_unit`` (the unit a file written
         from the scan would use); the vertices are in mm whatever it is.
+    material_points : (n, 3) float64 array, mm, or None, optional
+        Rest position of each vertex of ``vertices`` (the neutral face of the
+        identity, e.g. ``case.scan.vertices``). When given, the scan carries
+        colours: scan vertex ``i`` has material point ``barycentric[i] @
+        material_points[faces[source_faces[i]]]`` and colour
+        ``capture_colors(skin_albedo(material point, seed=albedo_seed,
+        region=...), surface_points, seed=<from seed>)`` in
+        ``mesh.vertex_colors`` (sRGB-encoded float32). None (default): no
+        colours, and the scan is bit for bit what it was without this option.
+    albedo_seed : int, default 0
+        Seed of the skin (:func:`~facecap.synth.skin_albedo.skin_albedo`):
+        the same for every scan of one identity.
+    skin_regions : SkinRegions or None, optional
+        Brows and lips for the albedo, with ``labels`` per vertex of
+        ``vertices`` (a scan vertex takes the label of its source triangle's
+        corner of largest barycentric weight) and ``lip_outline`` in the
+        frame of ``material_points``. Only used with ``material_points``.
 
     Returns
     -------
@@ -255,9 +277,13 @@ def scan_expression(
         target_vertices = 3 * V.shape[0]
     if int(target_vertices) != target_vertices or target_vertices < 100:
         raise InputError(f"target_vertices: expected an integer >= 100, got {target_vertices!r}")
-    rng_grid, rng_holes, rng_noise, rng_frame = (
-        np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(4)
-    )
+    # a fifth stream for the capture: spawn(5)[:4] are the same streams as spawn(4)
+    seeds = np.random.SeedSequence(seed).spawn(5)
+    rng_grid, rng_holes, rng_noise, rng_frame = (np.random.default_rng(s) for s in seeds[:4])
+    if material_points is not None:
+        M = as_vertices(material_points, name="material_points")
+        if M.shape != V.shape:
+            raise InputError(f"material_points: expected shape {V.shape} (one per vertex), got {M.shape}")
 
     N = igl.per_face_normals(V, F, np.array([0.0, 0.0, 0.0]))
     area = 0.5 * igl.doublearea(V, F)
@@ -358,7 +384,24 @@ def scan_expression(
         X[:3, 3] = rng_frame.uniform(-500.0, 500.0, 3)
     else:
         X = as_rigid_transform(scanner_from_face, name="scanner_from_face")
-    mesh = Mesh(noisy @ X[:3, :3].T + X[:3, 3], faces_out, source_unit=unit, source_path="<scanned>")
+    colors = None
+    if material_points is not None:
+        src, w = fid[keep], bary[keep]
+        mat = np.einsum("kc,kcd->kd", w, M[F[src]])
+        region = None
+        if skin_regions is not None:
+            labels = np.asarray(skin_regions.labels, dtype=np.int64).reshape(-1)
+            if labels.shape[0] != V.shape[0]:
+                raise InputError(
+                    f"skin_regions.labels: expected one label per vertex ({V.shape[0]}), got {labels.shape[0]}"
+                )
+            corner = F[src, np.argmax(w, axis=1)]
+            region = SkinRegions(labels[corner], tuple(skin_regions.names), skin_regions.lip_outline)
+        capture_seed = int(seeds[4].generate_state(1)[0])
+        colors = capture_colors(skin_albedo(mat, seed=albedo_seed, region=region), surface,
+                                seed=capture_seed)
+    mesh = Mesh(noisy @ X[:3, :3].T + X[:3, 3], faces_out, source_unit=unit, source_path="<scanned>",
+                vertex_colors=colors)
     return ScannedExpression(
         mesh=mesh,
         scanner_from_face=X,

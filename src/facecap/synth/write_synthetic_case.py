@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 from typing import NamedTuple, Sequence
 
@@ -13,7 +14,9 @@ from ..io.write_markers import write_markers
 from ..io.write_mesh import write_mesh
 from ..units import mm_per_unit
 from .generate_performance import SyntheticCase
+from .capture_colors import capture_colors
 from .scan_expression import scan_expression
+from .skin_albedo import SkinRegions, skin_albedo
 
 __all__ = ["write_synthetic_case", "write_planned_scans", "CaseFiles"]
 
@@ -35,6 +38,9 @@ def write_synthetic_case(
     marker_format: str = "c3d",
     region_labels: np.ndarray | None = None,
     region_names: list[str] | None = None,
+    colors: bool = False,
+    albedo_seed: int = 0,
+    capture_seed: int = 0,
 ) -> CaseFiles:
     """Write ``scan.obj``, ``take.<fmt>``, ``map.json`` and ``truth.npz`` into ``folder``.
 
@@ -50,6 +56,16 @@ def write_synthetic_case(
     region_labels : (n,) int array, optional
         Face region of each vertex, stored with the truth for per-region errors.
     region_names : list of str, optional
+    colors : bool, default False
+        Give the scan vertex colours, as a colour scanner would:
+        ``capture_colors(skin_albedo(case.scan.vertices, seed=albedo_seed,
+        region=...), case.scan.vertices, seed=capture_seed)`` (brows from
+        ``region_labels``/``region_names`` when given). Default False: the
+        files are what they were without this option.
+    albedo_seed : int, default 0
+        Seed of the skin; use the same in :func:`write_planned_scans`.
+    capture_seed : int, default 0
+        Seed of this capture's exposure, shading and sensor noise.
 
     Returns
     -------
@@ -66,7 +82,15 @@ def write_synthetic_case(
     out.mkdir(parents=True, exist_ok=True)
     scale = 1.0 / mm_per_unit(scan_unit)
     scan_path = out / "scan.obj"
-    write_mesh(case.scan, scan_path, unit=scan_unit)
+    scan_mesh = case.scan
+    if colors:
+        region = None
+        if region_labels is not None and region_names is not None:
+            region = SkinRegions(np.asarray(region_labels), tuple(region_names))
+        albedo = skin_albedo(case.scan.vertices, seed=albedo_seed, region=region)
+        scan_mesh = replace(case.scan, vertex_colors=capture_colors(
+            albedo, case.scan.vertices, seed=capture_seed))
+    write_mesh(scan_mesh, scan_path, unit=scan_unit)
     markers_path = out / f"take.{marker_format}"
     write_markers(case.markers, markers_path)
     map_path = out / "map.json"
@@ -97,6 +121,9 @@ def write_planned_scans(
     target_vertices: int | None = None,
     first_seed: int = 0,
     file_format: str = "obj",
+    colors: bool = False,
+    albedo_seed: int = 0,
+    skin_regions: SkinRegions | None = None,
 ) -> list[Path]:
     """Scan the true expression of each planned frame and write it, as a scanning session of the plan would.
 
@@ -106,6 +133,15 @@ def write_planned_scans(
     ``scan_{i:02d}_frame_{frame:04d}.{file_format}``, in the plan's order, as
     ``facecap register-scans --scans`` takes them.
 
+    With ``colors=True`` each scan carries vertex colours (written as
+    ``v x y z r g b`` in OBJ, ``uchar red, green, blue`` in PLY): the skin of
+    :func:`~facecap.synth.skin_albedo.skin_albedo` (seed ``albedo_seed``,
+    ``skin_regions`` labelled per vertex of ``case.scan``) at each scan
+    vertex's material point on the rest surface ``case.scan.vertices``, as
+    :func:`~facecap.synth.scan_expression.scan_expression` makes it with
+    ``material_points``; each scan has its own exposure, shading and noise.
+    Default False: the scans are what they were without this option.
+
     Returns
     -------
     list of Path
@@ -114,8 +150,10 @@ def write_planned_scans(
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for i, f in enumerate(frames):
+        extra = dict(material_points=case.scan.vertices, albedo_seed=albedo_seed,
+                     skin_regions=skin_regions) if colors else {}
         scanned = scan_expression(case.truth_vertices[int(f)], case.scan.faces, seed=first_seed + i,
-                                  target_vertices=target_vertices)
+                                  target_vertices=target_vertices, **extra)
         paths.append(out / f"scan_{i:02d}_frame_{int(f):04d}.{file_format}")
         write_mesh(scanned.mesh, paths[-1])
     return paths
