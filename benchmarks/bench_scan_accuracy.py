@@ -5,7 +5,10 @@ Each take of ``cases.py`` runs the command line as a user would: the generator w
 its scan and the dense truth; ``facecap animate`` (``--stabilize auto`` and ``off``) is the
 baseline; ``facecap plan-scans`` chooses the frames; each chosen frame's true expression is
 scanned by :func:`facecap.synth.write_planned_scans` (20k vertices, its own topology and
-scanner frame, noise and holes); ``facecap register-scans --template`` (the neutral scan) and
+scanner frame, noise and holes; with ``--colors`` also colour: the skin's albedo with each scan's own
+exposure, shading and sensor noise, a coloured scan of the neutral as ``--template-texture`` and
+``--color-alignment``);
+``facecap register-scans --template`` (the neutral scan) and
 ``facecap blend`` rebuild the take; ``facecap.report.evaluate_result`` gives the dense errors.
 
 Errors are in the world by default (each result moved by the head motion it wrote, against the
@@ -49,7 +52,7 @@ from facecap.io.conditioned_take import read_conditioned_take  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402
 from facecap.markers import rigid_fit  # noqa: E402
 from facecap.report.evaluate_result import evaluate_result  # noqa: E402
-from facecap.synth import load_ict_sample, write_synthetic_case  # noqa: E402
+from facecap.synth import SkinRegions, load_ict_sample, write_planned_scans, write_synthetic_case  # noqa: E402
 
 
 def _stabilisation_error_deg(synthetic, conditioned) -> np.ndarray:
@@ -86,7 +89,7 @@ def _basis_errors(synthetic, bases_dir: Path, blend_dir: Path) -> dict:
     }
 
 
-def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: int = 30) -> dict:
+def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: int = 30, colors: bool = False) -> dict:
     sample = load_ict_sample()
     synthetic = make_case(case, n_frames=frames)
     files = write_synthetic_case(synthetic, root / "inputs", region_labels=sample.region_labels,
@@ -102,10 +105,21 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
     planned = json.loads((root / "plan.json").read_text())["frames"]
     conditioned, _ = read_conditioned_take(root / "plan.conditioned.npz")
     stab_deg = _stabilisation_error_deg(synthetic, conditioned)
-    scans = [str(p) for p in scan_case(case, synthetic, planned, root / "scans", target_vertices=scan_vertices)]
+    texture: list[str] = []
+    colour = {}
+    if colors:  # scanners record colour: the skin's albedo, each scan with its own exposure and shading
+        regions = SkinRegions(sample.region_labels, tuple(sample.region_names),
+                              synthetic.scan.vertices[sample.landmarks[48:60]])
+        colour = dict(colors=True, albedo_seed=case.scan_seed, skin_regions=regions, file_format="ply")
+        # the neutral's own coloured scan (frame 0 is neutral): the template's texture
+        neutral = write_planned_scans(synthetic, [0], root / "texture", target_vertices=2 * scan_vertices,
+                                      first_seed=case.scan_seed + 1000, **colour)
+        texture = ["--template-texture", str(neutral[0]), "--color-alignment"]
+    scans = [str(p) for p in scan_case(case, synthetic, planned, root / "scans", target_vertices=scan_vertices,
+                                       **colour)]
     t = time.perf_counter()
     assert main([*cli, "register-scans", "--plan", str(root / "plan.json"), "--markers", str(files.markers),
-                 "--scans", *scans, "--template", str(files.scan), "--out", str(root / "bases")]) == 0
+                 "--scans", *scans, "--template", str(files.scan), *texture, "--out", str(root / "bases")]) == 0
     register_s = time.perf_counter() - t
     assert main([*cli, "blend", "--bases", str(root / "bases"), "--markers", str(files.markers),
                  "--out", str(root / "blend")]) == 0
@@ -119,6 +133,7 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
     blend_report = json.loads((root / "blend" / "blend_report.json").read_text())
     return {
         "case": case.name, "held_out": case.held_out, "tolerance": case.tolerance, "scans": len(planned),
+        "colors": colors,
         **{f"{k}_mm": v for k, v in errors.items()},
         "ratio": errors["blend"] / baseline,
         "stabilization_deg": {"median": float(np.median(stab_deg)), "p95": float(np.percentile(stab_deg, 95)),
@@ -139,6 +154,8 @@ def main_bench() -> None:
     parser.add_argument("--max-scans", type=int, default=30,
                         help="cap of plan-scans (the issue's range is 15-30 scans; real-motion takes need more "
                              "than 30 at the default tolerance)")
+    parser.add_argument("--colors", action="store_true",
+                        help="coloured scans, a coloured neutral scan as --template-texture, --color-alignment")
     parser.add_argument("--keep", help="keep each case's folder under this directory")
     args = parser.parse_args()
     cases = [case_by_name(n) for n in args.cases] if args.cases else list(HELD_OUT_CASES if args.held_out
@@ -149,11 +166,11 @@ def main_bench() -> None:
             root = Path(args.keep) / case.name
             root.mkdir(parents=True, exist_ok=True)
             row = run_case(case, root, frames=args.frames, scan_vertices=args.scan_vertices,
-                           max_scans=args.max_scans)
+                           max_scans=args.max_scans, colors=args.colors)
         else:
             with tempfile.TemporaryDirectory(prefix="facecap_scan_accuracy_") as tmp:
                 row = run_case(case, Path(tmp), frames=args.frames, scan_vertices=args.scan_vertices,
-                               max_scans=args.max_scans)
+                               max_scans=args.max_scans, colors=args.colors)
         rows.append(row)
         print("RESULT", json.dumps(row), flush=True)
     print("| case | held out | scans | stabilisation deg (median / max) | animate auto / off | blend | ratio (bar 0.5) "

@@ -198,9 +198,9 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--template-texture", default=None,
                    help="a coloured scan of the template's expression (e.g. the neutral's own scan), in the "
                         "template's units: the skin colour the scans are aligned to")
-    p.add_argument("--no-color-alignment", action="store_true",
-                   help="do not slide the registrations along the scans by skin colour (on by default when the "
-                        "scans and the template or --template-texture have vertex colours)")
+    p.add_argument("--color-alignment", action="store_true",
+                   help="slide the registrations along the scans until the skin colours match the template's "
+                        "(scans and template or --template-texture with vertex colours; experimental)")
     p.add_argument("--refine", action="store_true",
                    help="run the fine-scale (optical flow) registration of section 6.2 (experimental)")
     p.add_argument("--out", required=True, help="bases folder")
@@ -223,7 +223,7 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--template-units", default="mm")
     p.add_argument("--marker-offset", type=float, default=1.5)
     p.add_argument("--template-texture", default=None, help="coloured scan of the template's expression")
-    p.add_argument("--no-color-alignment", action="store_true", help="no sliding by skin colour")
+    p.add_argument("--color-alignment", action="store_true", help="slide by skin colour (experimental)")
     p.add_argument("--refine", action="store_true", help="fine-scale registration (experimental)")
     p.add_argument("--export", default="")
     p.add_argument("--out", required=True, help="output folder (holds plan.json, bases/, animation/)")
@@ -252,7 +252,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
                                     scan_unit=args.scan_units, template_unit=args.template_units,
                                     marker_offset_mm=args.marker_offset, refine=args.refine,
                                     template_texture_path=args.template_texture,
-                                    align_colors=False if args.no_color_alignment else None,
+                                    align_colors=args.color_alignment,
                                     progress=not args.quiet)
     if not args.quiet:
         reg = report["registration_mm"]
@@ -287,7 +287,7 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
                            scan_unit=args.scan_units, template_unit=args.template_units,
                            marker_offset_mm=args.marker_offset, refine=args.refine,
                            template_texture_path=args.template_texture,
-                           align_colors=False if args.no_color_alignment else None, progress=not args.quiet)
+                           align_colors=args.color_alignment, progress=not args.quiet)
     exports = _exports_option(args.export)
     report = blend_take(out / "bases", args.markers, out / "animation", exports=exports, progress=not args.quiet)
     if not args.quiet:

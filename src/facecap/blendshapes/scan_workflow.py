@@ -160,16 +160,16 @@ def register_planned_scans(
     marker_offset_mm: float = 1.5,
     refine: bool = False,
     template_texture_path: str | Path | None = None,
-    align_colors: bool | None = None,
+    align_colors: bool = False,
     marker_unit: str | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:
     """Register one scan per planned frame and write the bases folder.
 
-    Scans with vertex colours are slid along their surfaces until the skin's
-    colours match the template's (``align_colors``, default: whenever the
-    scans and the template, or ``template_texture_path``, a coloured scan of
-    the template's expression in the template's unit, have colours), see
+    With ``align_colors`` the registrations are slid along the scans until
+    the skin's colours match the template's (the scans and the template, or
+    ``template_texture_path``, a coloured scan of the template's expression
+    in the template's unit, need vertex colours), see
     :func:`facecap.registration.register_scans`.
 
     ``scan_unit`` and ``template_unit`` are length units, or ``'auto'``: each

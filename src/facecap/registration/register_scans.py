@@ -17,6 +17,7 @@ from ..markers.rigid_fit import rigid_fit
 from ..structures import Mesh
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
 from .register_template_to_scan import register_template_to_scan
+from .rigid_icp import rigid_icp
 
 __all__ = ["RegisteredScans", "register_scans", "DEFAULT_MARKER_OFFSET_MM", "DEFAULT_REST_WEIGHT",
            "TEMPLATE_DEFORMATION_WEIGHT"]
@@ -103,7 +104,12 @@ def _template_texture(texture: Mesh | None, template: Mesh, tmpl_mocap: Mesh, te
         raise InputError("template_texture needs the template's markers (template_markers) to be placed")
     reg = register_markers_to_scan(template_markers, texture, subspace=subspace, marker_offset_mm=marker_offset_mm,
                                    deformation_weight=deformation_weight)
-    return _to_mocap(texture, reg)
+    placed = _to_mocap(texture, reg)
+    # The markers place it to within their noise (tenths of a mm, a tenth of a degree); every basis
+    # is slid onto its colours, so any offset of the texture against the template would be copied into
+    # all of them. Both show the same expression: the surfaces themselves align it exactly.
+    icp = rigid_icp(placed.vertices, tmpl_mocap.vertices, tmpl_mocap.faces, init=np.eye(4), trim=0.8)
+    return placed.with_vertices(placed.vertices @ icp.rotation.T + icp.translation)
 
 
 def register_scans(
@@ -115,7 +121,7 @@ def register_scans(
     marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
     refine: bool = False,
     template_texture: Mesh | None = None,
-    align_colors: bool | None = None,
+    align_colors: bool = False,
     flag_threshold_mm: float = 0.2,
     rest_weight: float = DEFAULT_REST_WEIGHT,
     template_deformation_weight: float = TEMPLATE_DEFORMATION_WEIGHT,
@@ -152,14 +158,19 @@ def register_scans(
         template is a retopologised neutral. It is placed like any scan (the
         template's markers registered onto it). Default: the template itself
         when it has colours.
-    align_colors : bool, optional
+    align_colors : bool, default False
         Slide every registered scan along its scan until the skin's colours
         match the template's (:func:`~facecap.registration.align_albedo.align_albedo`):
-        the tangential correspondence geometry cannot give. Default: when the
-        scans and a template texture have colours. On generated scans with
-        skin texture (strong brow and eye expressions of a real-motion take)
-        each basis's error at its own frame fell from 0.38 to 0.28 mm and
-        from 0.23 to 0.17 mm, the forehead's from 0.36 to 0.12 mm.
+        the tangential correspondence geometry cannot give. Needs colours on
+        the scans and on the template or ``template_texture``. Off by
+        default: how much it helps depends on how much texture the scans
+        resolve. With a dense 3-10 mm texture (exact markers, two strong
+        brow/eye bases of a real-motion take) each basis's error fell from
+        0.38 to 0.28 mm and from 0.23 to 0.17 mm (forehead 0.36 -> 0.12); with
+        the generator's skin model at 20k-vertex scans (mottling, blotches,
+        sparse freckles, brows) it did not (0.38 -> 0.34, 0.23 -> 0.25), and
+        through the whole workflow on a default take the blend got worse
+        (0.15 -> 0.22 mm). See docs/scan_workflow.md.
     refine : bool, default False
         Run the fine-scale registration (section 6.2). Off by default: on the
         generated ICT scans (smooth, few curvature features) it has not yet
@@ -263,7 +274,7 @@ def register_scans(
     colours = all(s.vertex_colors is not None for s in scans_mocap) and texture is not None
     if align_colors and not colours:
         raise InputError("align_colors: the scans and the template (or template_texture) need vertex colours")
-    if colours and align_colors is not False:
+    if align_colors:
         from .align_albedo import align_albedo
 
         t = time.perf_counter()
