@@ -38,3 +38,21 @@ def test_bad_arguments(take):
         condition_take(take.markers, rest_frame=500)
     with pytest.raises(MarkerError, match="not in the take"):
         condition_take(take.markers, stabilize=["nope", "HB0", "HB1"])
+
+
+def test_a_still_head_without_band_is_left_unstabilised_and_a_moving_one_is_not():
+    # Strong, frequent expressions and skin markers only: on a still head the most rigid markers
+    # still turn with the expressions, which stabilisation would add to every frame.
+    from facecap.errors import FacecapWarning
+    from facecap.synth import load_ict_sample, smooth_expression_curves
+
+    names = load_ict_sample().expression_names
+    W = smooth_expression_curves(400, names, rate=60, seed=21, expressions_per_second=1.5, intensity=(0.9, 1.0))
+    common = dict(curves=W, seed=21, identity=[0.7, -0.5, 0.3], headband_markers=0)
+    still = generate_performance(head_rotation_deg=0.0, head_translation_mm=0.0, **common)
+    with pytest.warns(FacecapWarning, match="left unstabilised"):
+        out = condition_take(still.markers, stabilize=True, smooth=False)
+    assert out.head_rotations is None
+    moving = generate_performance(head_rotation_deg=4.0, head_pivot="neck", **common)
+    out = condition_take(moving.markers, stabilize=True, smooth=False)
+    assert out.head_rotations is not None

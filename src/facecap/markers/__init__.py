@@ -13,7 +13,13 @@ batched, NaN-aware Kabsch fit they share, returning a :class:`RigidTransform`.
 from __future__ import annotations
 
 from .bilateral_filter import bilateral_filter
-from .condition_take import DEFAULT_HEAD_MOTION_SIGMA_S, ConditionedTake, auto_stabilize, condition_take
+from .condition_take import (
+    DEFAULT_HEAD_MOTION_SIGMA_S,
+    STILL_HEAD_RATIO,
+    ConditionedTake,
+    auto_stabilize,
+    condition_take,
+)
 from .consensus_stabilize import consensus_stabilize, estimate_marker_noise
 from .fill_gaps import FilledMarkers, fill_gaps
 from .rigid_fit import RigidTransform, rigid_fit
@@ -31,6 +37,7 @@ __all__ = [
     "consensus_stabilize",
     "estimate_marker_noise",
     "DEFAULT_HEAD_MOTION_SIGMA_S",
+    "STILL_HEAD_RATIO",
     "rigid_fit",
     "RigidTransform",
 ]

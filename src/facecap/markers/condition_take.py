@@ -16,7 +16,10 @@ from .rigid_fit import RigidTransform
 from .consensus_stabilize import consensus_stabilize
 from .stabilize_head import Stabilization, stabilize_head
 
-__all__ = ["ConditionedTake", "condition_take", "DEFAULT_HEAD_MOTION_SIGMA_S"]
+__all__ = ["ConditionedTake", "condition_take", "DEFAULT_HEAD_MOTION_SIGMA_S", "STILL_HEAD_RATIO"]
+
+STILL_HEAD_RATIO = 2.0
+"""A head counts as still when its motion is under this many times the disagreement of two estimates of it."""
 
 DEFAULT_HEAD_MOTION_SIGMA_S = 0.05
 """Half-width (s) of the smoothing of the stabilising transform over time (see :func:`condition_take`)."""
@@ -106,14 +109,20 @@ def condition_take(
         elif isinstance(stabilize, bool):
             preferred = [index[s] for s in preferred_stable if s in index]
             stab = auto_stabilize(P, rest_frame, preferred)
+            if stab is None:
+                warnings.warn(
+                    f"{markers.source_path or 'take'}: no head motion beyond what the expressions move the "
+                    "most rigid markers by; the take is left unstabilised (name the stable markers to force it)",
+                    FacecapWarning, stacklevel=2)
         else:
             unknown = [s for s in stabilize if s not in index]
             if unknown:
                 raise MarkerError(f"--stabilize names markers not in the take: {unknown}", path=markers.source_path)
             stab = stabilize_head(P, rest_frame=rest_frame, stable_markers=[index[s] for s in stabilize])
-        if head_motion_sigma_s > 0:
-            stab = _smooth_stabilization(stab, filled.positions, head_motion_sigma_s * markers.rate, rest_frame)
-        P = stab.positions
+        if stab is not None:
+            if head_motion_sigma_s > 0:
+                stab = _smooth_stabilization(stab, filled.positions, head_motion_sigma_s * markers.rate, rest_frame)
+            P = stab.positions
     if smooth:
         P = bilateral_filter(P, rate=markers.rate, rest_frame=rest_frame)
     return ConditionedTake(
@@ -126,7 +135,7 @@ def condition_take(
     )
 
 
-def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> Stabilization:
+def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> Stabilization | None:
     """Stabilise on the most rigid markers, preferring the given ones (head band, reference markers).
 
     Markers that are in the take but not in the map are usually on a head
@@ -135,6 +144,19 @@ def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> 
     the stabilisation. So when at least three preferred markers exist and they
     fit rigidly about as well as the best automatic set (median residual
     within 1.5x + 0.1 mm), they are used.
+
+    Otherwise the most rigid set of markers is used, unless the head does not
+    visibly move: every skin marker moves with some expression, so a set of
+    them turns with the expressions even on a still head (on a generated take
+    with the head still, 0.5 degrees at the 95th percentile), and stabilising
+    such a take only adds that error (animate 0.43 against 0.37 mm). The test:
+    the most rigid set's rotation against the rotation most markers agree on
+    (:func:`consensus_stabilize`): two estimates that both carry expression,
+    differently. Where the head moves they agree to a fraction of its motion
+    (their disagreement is at most a quarter of the motion on the seven tuned
+    takes that move, 3.4-5.7 degrees); where it stays still the motion found is
+    no larger than their disagreement (0.50 against 0.43 degrees). Below
+    :data:`STILL_HEAD_RATIO` times the disagreement, None is returned.
 
     Without a head band :func:`consensus_stabilize` (``stabilize="consensus"``
     in :func:`condition_take`) is the alternative; it is not the default
@@ -150,7 +172,22 @@ def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> 
             band = stabilize_head(P, rest_frame=rest_frame, stable_markers=usable)
         if np.nanmedian(band.residual_rms) <= 1.5 * np.nanmedian(auto.residual_rms) + 0.1:
             return band
+    if _head_is_still(auto, consensus_stabilize(P, rest_frame=rest_frame)):
+        return None
     return auto
+
+
+def _head_is_still(rigid_set: Stabilization, consensus: Stabilization) -> bool:
+    """True when the motion ``rigid_set`` found is within :data:`STILL_HEAD_RATIO` of its disagreement with ``consensus``."""
+    from scipy.spatial.transform import Rotation
+
+    ok = np.all(np.isfinite(rigid_set.rotations), axis=(1, 2)) & np.all(np.isfinite(consensus.rotations), axis=(1, 2))
+    if ok.sum() < 2:
+        return False
+    R, C = rigid_set.rotations[ok], consensus.rotations[ok]
+    motion = np.percentile(Rotation.from_matrix(R).magnitude(), 95)
+    disagreement = np.percentile(Rotation.from_matrix(R @ np.swapaxes(C, 1, 2)).magnitude(), 95)
+    return bool(motion < STILL_HEAD_RATIO * disagreement)
 
 
 def _smooth_stabilization(stab: Stabilization, positions: np.ndarray, sigma_frames: float,
