@@ -254,11 +254,19 @@ def register_scans(
     registered = np.empty((K, template.n_vertices, 3))
     matched = np.empty((K, template.n_vertices), dtype=bool)  # vertices with a trusted closest point
     distances = np.empty(K)
+    # Markers the scan does not show (the sides of the face beyond a single-view scan) still say
+    # where their skin is: the frame's marker less its height along the template's normal there.
+    # Left out, eq. 7 extrapolated those parts from the scan's edge and section 7 then had to pull
+    # them by up to 17 mm (bases 0.75-0.87 mm off where the others were 0.3).
+    tmpl_normals = igl.per_vertex_normals(tmpl_mocap.vertices, template.faces)
+    marker_normals_rest = np.einsum("mj,mjc->mc", marker_weights, tmpl_normals[np.maximum(marker_vertices, 0)])
+    marker_normals_rest /= np.maximum(np.linalg.norm(marker_normals_rest, axis=1, keepdims=True), 1e-12)
     for i in tqdm(range(K), desc="template -> scans", disable=not progress, leave=False):
         reg = registrations[i]
         skin = (reg.surface_points - reg.translation) @ reg.rotation  # skin under each marker, mocap frame
         usable = on_template & ~reg.unmatched
-        targets = np.where(usable[:, None], skin, np.nan)[on_template]
+        off_scan = X[i] - marker_offset_mm * marker_normals_rest
+        targets = np.where(usable[:, None], skin, off_scan)[on_template]
         result = register_template_to_scan(tmpl_mocap, marker_vertices[on_template], marker_weights[on_template],
                                            scans_mocap[i], targets, rest_weight=rest_weight)
         registered[i] = result.vertices
