@@ -110,7 +110,8 @@ def animate_error(synthetic: SyntheticCase, folder: Path, *, markers=None, stabi
                      stabilize=stabilize, progress=False, **options)
     result = np.load(out / "vertices.npy", mmap_mode="r")
     truth = synthetic.truth_vertices
-    if not stabilize and markers is None:
+    stabilized = json.loads((out / "performance.json").read_text())["stabilized"]  # auto leaves a still head
+    if not stabilized and markers is None:
         pose = synthetic.head_pose
         truth = (np.einsum("tij,tnj->tni", pose[:, :3, :3].astype(np.float32), truth)
                  + pose[:, None, :3, 3].astype(np.float32))

@@ -134,6 +134,9 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("evaluate", help="dense error of a result against ground truth")
     p.add_argument("--truth", required=True, help="ground truth .npz (as written by facecap's generator)")
     p.add_argument("--result", required=True, help="a facecap output folder")
+    p.add_argument("--frame", choices=("auto", "world", "stabilized"), default="auto",
+                   help="compare a stabilised result in the world (moved by its head motion) or as the "
+                        "stabilised face against the expression-only truth [auto: world when head_motion.npy exists]")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
     p.set_defaults(func=_cmd_evaluate)
 
@@ -141,7 +144,7 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from .report.evaluate_result import evaluate_result
 
-    error = evaluate_result(args.truth, args.result)
+    error = evaluate_result(args.truth, args.result, frame=args.frame)
     summary = error.to_dict()
     summary.pop("per_frame_mean_mm", None)
     summary.pop("per_frame_max_mm", None)

@@ -245,7 +245,8 @@ def blend_take(
     t = time.perf_counter()
     blend = blend_weights_with_head_pose(folder["basis_markers"], conditioned.positions)
     weights, residual = blend.weights, blend.residual_mm
-    head_motion = _head_motion(conditioned, blend.rotations, blend.translations, folder["output_from_mocap"])
+    head_motion = _head_motion(conditioned, blend.rotations, blend.translations, folder["output_from_mocap"],
+                               int(conditioning.get("rest_frame", 0)))
     frames = folder["plan"]["frames"]
     header = "frame,time_s," + ",".join(f"basis_{i}_frame_{f}" for i, f in enumerate(frames))
     rows = [f"{t_},{t_ / take.rate:.6f}," + ",".join(f"{w:.6g}" for w in weights[t_]) for t_ in range(len(weights))]
@@ -275,8 +276,8 @@ def blend_take(
 
 
 def _head_motion(conditioned: ConditionedTake, rotations: np.ndarray, translations: np.ndarray,
-                 output_from_mocap: np.ndarray) -> np.ndarray | None:
-    """Head motion per frame in the output (template) frame, mm: ``A (J_t S_t)^-1 A^-1``.
+                 output_from_mocap: np.ndarray, rest_frame: int) -> np.ndarray | None:
+    """Head motion per frame in the output (template) frame, mm: ``A S_rest (J_t S_t)^-1 A^-1``.
 
     ``S_t`` is the take's stabilisation (mocap -> its rest pose), ``J_t`` the
     blend's rigid correction of it and ``A`` the mocap -> template transform;
@@ -290,5 +291,7 @@ def _head_motion(conditioned: ConditionedTake, rotations: np.ndarray, translatio
     J = np.tile(np.eye(4), (T, 1, 1))
     J[:, :3, :3], J[:, :3, 3] = rotations, translations
     A = np.asarray(output_from_mocap, dtype=np.float64)
-    pose = A[None] @ np.linalg.inv(J @ S) @ np.linalg.inv(A)[None]
+    # absolute: the captured markers at frame t, in the template's coordinates of the rest frame's
+    # capture (A S_rest maps the raw rest frame there), so the rest frame's own smoothing is kept
+    pose = A[None] @ S[rest_frame][None] @ np.linalg.inv(J @ S) @ np.linalg.inv(A)[None]
     return pose if np.all(np.isfinite(pose)) else None

@@ -105,7 +105,9 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: st
             raise FileFormatError(f"head_motion.npy has shape {motion.shape}, expected ({result.shape[0]}, 4, 4)",
                                   path=str(motion_path))
         motion[:, :3, 3] *= float(result_scale)
-        result_mm = _moved(np.asarray(result_mm, dtype=np.float32), np.linalg.inv(motion[rest])[None] @ motion)
+        # head_motion.npy is absolute: where the face is at each frame, in the scan's coordinates at the
+        # rest frame's pose (its rest-frame entry is the identity only to within the capture's noise)
+        result_mm = _moved(np.asarray(result_mm, dtype=np.float32), motion)
     names = [str(s) for s in truth["region_names"]] if "region_names" in truth else None
     labels = truth.get("region_labels")
     return evaluate_performance(result_mm, truth_mm, region_labels=labels, region_names=names)
