@@ -277,7 +277,7 @@ def blend_take(
 
 def _head_motion(conditioned: ConditionedTake, rotations: np.ndarray, translations: np.ndarray,
                  output_from_mocap: np.ndarray, rest_frame: int) -> np.ndarray | None:
-    """Head motion per frame in the output (template) frame, mm: ``A S_rest (J_t S_t)^-1 A^-1``.
+    """Head motion per frame in the output (template) frame, mm: ``A (J_t S_t)^-1 A^-1``, anchored at the rest frame.
 
     ``S_t`` is the take's stabilisation (mocap -> its rest pose), ``J_t`` the
     blend's rigid correction of it and ``A`` the mocap -> template transform;
@@ -291,7 +291,11 @@ def _head_motion(conditioned: ConditionedTake, rotations: np.ndarray, translatio
     J = np.tile(np.eye(4), (T, 1, 1))
     J[:, :3, :3], J[:, :3, 3] = rotations, translations
     A = np.asarray(output_from_mocap, dtype=np.float64)
-    # absolute: the captured markers at frame t, in the template's coordinates of the rest frame's
-    # capture (A S_rest maps the raw rest frame there), so the rest frame's own smoothing is kept
-    pose = A[None] @ S[rest_frame][None] @ np.linalg.inv(J @ S) @ np.linalg.inv(A)[None]
+    pose = A[None] @ np.linalg.inv(J @ S) @ np.linalg.inv(A)[None]
+    # Anchored at the rest frame, whose blend is the template's own expression in its own pose (the
+    # template was registered to that frame's markers): the pose solve's correction there is the
+    # bases' disagreement, not head motion. Measured against leaving it in (the capture's own
+    # pose at rest, as animate writes it): world error 0.149 vs 0.165 and 0.252 vs 0.289 mm on two
+    # generated head-band takes.
+    pose = np.linalg.inv(pose[rest_frame])[None] @ pose
     return pose if np.all(np.isfinite(pose)) else None
