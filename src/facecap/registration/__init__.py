@@ -30,7 +30,6 @@ from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .refine_registration import Refinement, refine_registration
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
 from .register_scans import (
-    DEFAULT_MARKER_OFFSET_MM,
     DEFAULT_REST_WEIGHT,
     TEMPLATE_DEFORMATION_WEIGHT,
     RegisteredScans,
@@ -46,7 +45,6 @@ __all__ = [
     "UNSEEN_ANCHOR",
     "register_scans",
     "RegisteredScans",
-    "DEFAULT_MARKER_OFFSET_MM",
     "DEFAULT_REST_WEIGHT",
     "TEMPLATE_DEFORMATION_WEIGHT",
     "register_markers_to_scan",

@@ -12,6 +12,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..blendshapes.fit_bases_to_markers import fit_bases_to_markers
+from ..deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM
 from ..errors import FacecapWarning, InputError
 from ..markers.rigid_fit import rigid_fit
 from ..structures import Mesh
@@ -19,11 +20,8 @@ from .register_markers_to_scan import MarkerRegistration, register_markers_to_sc
 from .register_template_to_scan import register_template_to_scan
 from .rigid_icp import rigid_icp
 
-__all__ = ["RegisteredScans", "register_scans", "DEFAULT_MARKER_OFFSET_MM", "DEFAULT_REST_WEIGHT",
+__all__ = ["RegisteredScans", "register_scans", "DEFAULT_REST_WEIGHT",
            "TEMPLATE_DEFORMATION_WEIGHT"]
-
-DEFAULT_MARKER_OFFSET_MM = 1.5
-"""Height of a marker's centre above the skin: half a 3 mm hemispherical marker."""
 
 DEFAULT_REST_WEIGHT = 3e-4
 """``w0`` of the template registration (swept in docs/scan_workflow.md)."""
