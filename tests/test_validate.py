@@ -40,3 +40,13 @@ def test_project_gives_the_nearest_rotation():
     # the orthogonal Procrustes solution: scipy's polar decomposition gives the same rotation
     from scipy.linalg import polar
     np.testing.assert_allclose(R, polar(drifted[:3, :3])[0], atol=1e-12)
+
+
+def test_as_positive_range():
+    from facecap.validate import as_positive_range
+
+    assert as_positive_range((0.25, 0.6), name="r") == (0.25, 0.6)
+    for bad, message in (((0.6, 0.25), "low <= high"), (0.3, r"\(low, high\)"), ((1.0, 2.0, 3.0), r"\(low, high\)"),
+                         ((-1.0, 2.0), "positive")):
+        with pytest.raises(InputError, match=message):
+            as_positive_range(bad, name="r")

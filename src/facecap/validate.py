@@ -13,7 +13,8 @@ import numpy as np
 from .errors import InputError, MarkerError, MeshError
 from .typing import FloatArray, IntArray
 
-__all__ = ["as_vertices", "as_faces", "as_marker_positions", "as_points", "as_positive", "as_rigid_transform"]
+__all__ = ["as_vertices", "as_faces", "as_marker_positions", "as_points", "as_positive", "as_positive_range",
+           "as_rigid_transform"]
 
 
 def as_points(X: Any, *, name: str, dim: int = 3, allow_nan: bool = False) -> FloatArray:
@@ -89,6 +90,19 @@ def as_positive(x: Any, *, name: str, allow_zero: bool = False) -> float:
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         raise InputError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {x!r}")
     return v
+
+
+def as_positive_range(x: Any, *, name: str) -> tuple[float, float]:
+    """``x`` as a ``(low, high)`` pair of positive finite numbers with ``low <= high``, or InputError naming ``name``."""
+    try:
+        lo, hi = (as_positive(v, name=name) for v in x)
+    except InputError:
+        raise
+    except (TypeError, ValueError):  # not iterable, or not two items
+        raise InputError(f"{name}: expected (low, high), got {x!r}") from None
+    if lo > hi:
+        raise InputError(f"{name}: expected (low, high) with low <= high, got {x!r}")
+    return lo, hi
 
 
 def as_rigid_transform(T: Any, *, name: str, project: bool = False) -> FloatArray:

@@ -172,7 +172,7 @@ def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> 
             band = stabilize_head(P, rest_frame=rest_frame, stable_markers=usable)
         if np.nanmedian(band.residual_rms) <= 1.5 * np.nanmedian(auto.residual_rms) + 0.1:
             return band
-    if _head_is_still(auto, consensus_stabilize(P, rest_frame=rest_frame)):
+    if _head_is_still(auto, consensus_stabilize(P, rest_frame=rest_frame, start=auto)):
         return None
     return auto
 

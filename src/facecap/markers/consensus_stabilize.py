@@ -9,7 +9,7 @@ import numpy as np
 from ..errors import InputError, MarkerError
 from ..typing import FloatArray
 from ..validate import as_marker_positions
-from .rigid_fit import rigid_fit
+from .rigid_fit import RigidTransform, rigid_fit
 from .stabilize_head import Stabilization, stabilize_head
 
 __all__ = ["consensus_stabilize", "estimate_marker_noise"]
@@ -70,8 +70,7 @@ def consensus_stabilize(
     noise_mm: float | None = None,
     iterations: int = 10,
     rounds: int = 3,
-    rigid_set_weight: float = 0.0,
-    motion_prior_mm: float = 2.0,
+    start: Stabilization | None = None,
 ) -> Stabilization:
     """Remove head motion from skin markers alone: per frame, the rigid motion most markers agree on.
 
@@ -98,6 +97,10 @@ def consensus_stabilize(
     rounds : int, default 3
         Times the per-marker motion prior is re-estimated from the current
         stabilisation.
+    start : Stabilization, optional
+        Where to start: :func:`~facecap.markers.stabilize_head.stabilize_head`
+        of ``positions`` with the same ``rest_frame`` (computed when not given;
+        pass it when you have it).
 
     Returns
     -------
@@ -145,18 +148,20 @@ def consensus_stabilize(
         sigma = 0.0
     scale = max(CONSENSUS_SCALE_PER_NOISE * sigma, MIN_CONSENSUS_SCALE_MM)
 
-    start = stabilize_head(P, rest_frame=rest_frame)
+    if start is None:
+        start = stabilize_head(P, rest_frame=rest_frame)
+    elif start.positions.shape != P.shape:
+        raise InputError(f"start: a stabilisation of {start.positions.shape[:2]} frames x markers, expected {P.shape[:2]}")
     moved = start.positions
     seen = np.isfinite(P).all(axis=2) & np.isfinite(target).all(axis=1)[None]
-    fit = None
+    fit = RigidTransform(start.rotations, start.translations, start.residual_rms)
     W = np.zeros((T, M))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns and frames
         for _ in range(rounds):
             distance = np.linalg.norm(moved - target[None], axis=2)
             q90 = np.nanpercentile(np.where(seen, distance, np.nan), 90, axis=0)
-            prior = 1.0 / (1.0 + (np.nan_to_num(q90, nan=np.inf) / motion_prior_mm) ** 2)
-            prior[start.stable_markers] *= 1.0 + rigid_set_weight
+            prior = 1.0 / (1.0 + (np.nan_to_num(q90, nan=np.inf) / MOTION_PRIOR_MM) ** 2)
             for _ in range(iterations):
                 W = np.where(seen, prior[None] * np.exp(-(np.nan_to_num(distance, nan=np.inf) / scale) ** 2), 0.0)
                 # a frame whose markers all moved keeps the start's weights rather than none
@@ -166,7 +171,6 @@ def consensus_stabilize(
                 fit = rigid_fit(P, target, weights=W)
                 moved = fit.apply(P)
                 distance = np.linalg.norm(moved - target[None], axis=2)
-    assert fit is not None
     mean_weight = W.sum(axis=0) / max(T, 1)
     carried = np.flatnonzero(mean_weight >= 0.5 * mean_weight.max())
     return Stabilization(

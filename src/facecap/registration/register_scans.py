@@ -91,7 +91,7 @@ def _surface_motion(template: Mesh, registered: np.ndarray, matched: np.ndarray)
     return slide, lift
 
 
-def _template_texture(texture: Mesh | None, template: Mesh, tmpl_mocap: Mesh, template_markers: np.ndarray | None,
+def _template_texture(texture: Mesh | None, tmpl_mocap: Mesh, template_markers: np.ndarray | None,
                       subspace: np.ndarray, marker_offset_mm: float, deformation_weight: float) -> Mesh | None:
     """The coloured surface of the template's expression in the mocap frame, or None without colours."""
     if texture is None:
@@ -274,14 +274,14 @@ def register_scans(
         report["scans"][i]["matched_fraction"] = float(result.matched.mean())
     timings["large_scale_registration_s"] = time.perf_counter() - t
 
-    texture = _template_texture(template_texture, template, tmpl_mocap, np.asarray(template_markers, dtype=np.float64)
-                                if template_markers is not None else None, X, marker_offset_mm,
-                                template_deformation_weight)
-    colours = all(s.vertex_colors is not None for s in scans_mocap) and texture is not None
-    if align_colors and not colours:
-        raise InputError("align_colors: the scans and the template (or template_texture) need vertex colours")
     if align_colors:
         from .align_albedo import align_albedo
+
+        texture = _template_texture(template_texture, tmpl_mocap,
+                                    None if template_markers is None else np.asarray(template_markers, dtype=np.float64),
+                                    X, marker_offset_mm, template_deformation_weight)
+        if texture is None or any(s.vertex_colors is None for s in scans_mocap):
+            raise InputError("align_colors: the scans and the template (or template_texture) need vertex colours")
 
         t = time.perf_counter()
         up = output_from_mocap[:3, :3].T @ np.array([0.0, 1.0, 0.0])

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..typing import FloatArray
-from ..validate import as_positive
+from ..validate import as_positive, as_positive_range
 
 __all__ = ["EXPRESSION_PRESETS", "smooth_expression_curves"]
 
@@ -49,16 +49,6 @@ def _blink_curve(rng: np.random.Generator, t: np.ndarray, duration: float, lead_
         blink = np.maximum(blink, _smoothstep((t - blink_at) / close) * (1.0 - _smoothstep((t - blink_at - close - 0.04) / (close * 1.5))))
         blink_at += rng.exponential(1.0 / blinks_per_second) + 0.4
     return blink
-
-
-def _range(x: tuple[float, float], name: str) -> tuple[float, float]:
-    try:
-        lo, hi = (as_positive(v, name=name) for v in x)
-    except TypeError:
-        raise InputError(f"{name}: expected (low, high) durations, got {x!r}") from None
-    if lo > hi:
-        raise InputError(f"{name}: expected (low, high) with low <= high, got {x!r}")
-    return lo, hi
 
 
 def smooth_expression_curves(
@@ -157,8 +147,8 @@ def smooth_expression_curves(
     if lo > hi:
         raise InputError(f"intensity: expected (low, high) with low <= high, got {intensity!r}")
     intensity = (lo, hi)
-    ramp_in_s = _range(ramp_in_s, "ramp_in_s")
-    ramp_out_s = _range(ramp_out_s, "ramp_out_s")
+    ramp_in_s = as_positive_range(ramp_in_s, name="ramp_in_s")
+    ramp_out_s = as_positive_range(ramp_out_s, name="ramp_out_s")
     asymmetry = as_positive(asymmetry, name="asymmetry", allow_zero=True)
     if asymmetry >= 1.0:
         raise InputError(f"asymmetry: expected a value in [0, 1), got {asymmetry}")

@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import FileFormatError, InputError
 from ..typing import FloatArray
-from ..validate import as_positive
+from ..validate import as_positive, as_positive_range
 from .expression_curves import _smoothstep
 
 __all__ = ["REAL_CURVE_NAMES", "RealCurveFit", "load_real_curve_fit", "real_motion_curves"]
@@ -193,8 +193,8 @@ def real_motion_curves(
         raise InputError(f"n_frames: expected a positive integer, got {n_frames!r}")
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise InputError(f"seed: expected an integer >= 0, got {seed!r}")
-    segment_s = _pair(segment_s, "segment_s")
-    stretch = _pair(stretch, "stretch")
+    segment_s = as_positive_range(segment_s, name="segment_s")
+    stretch = as_positive_range(stretch, name="stretch")
     asymmetry = as_positive(asymmetry, name="asymmetry", allow_zero=True)
     if asymmetry >= 1:
         raise InputError(f"asymmetry: expected a value in [0, 1), got {asymmetry}")
@@ -240,11 +240,3 @@ def real_motion_curves(
     return W
 
 
-def _pair(x: tuple[float, float], name: str) -> tuple[float, float]:
-    try:
-        lo, hi = (as_positive(v, name=name) for v in x)
-    except TypeError:
-        raise InputError(f"{name}: expected (low, high), got {x!r}") from None
-    if lo > hi:
-        raise InputError(f"{name}: expected (low, high) with low <= high, got {x!r}")
-    return lo, hi

@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..typing import FloatArray
-from ..validate import as_positive
+from ..validate import as_positive, as_positive_range
 from .expression_curves import _blink_curve, _smoothstep
 
 __all__ = ["CONSONANT_VISEMES", "VOWEL_VISEMES", "speech_expression_curves"]
@@ -127,9 +127,9 @@ def speech_expression_curves(
     if isinstance(names, str) or not all(isinstance(s, str) for s in names):
         raise InputError("names: expected a sequence of blendshape names (str)")
     rate = as_positive(rate, name="rate")
-    syllable_rate = _positive_range(syllables_per_second, "syllables_per_second")
-    phrase_s = _positive_range(phrase_s, "phrase_s")
-    pause_s = _positive_range(pause_s, "pause_s")
+    syllable_rate = as_positive_range(syllables_per_second, name="syllables_per_second")
+    phrase_s = as_positive_range(phrase_s, name="phrase_s")
+    pause_s = as_positive_range(pause_s, name="pause_s")
     brow_accents = as_positive(brow_accents, name="brow_accents", allow_zero=True)
     if brow_accents > 1:
         raise InputError(f"brow_accents: expected a probability in [0, 1], got {brow_accents}")
@@ -192,11 +192,3 @@ def speech_expression_curves(
     return W
 
 
-def _positive_range(x: tuple[float, float], name: str) -> tuple[float, float]:
-    try:
-        lo, hi = (as_positive(v, name=name) for v in x)
-    except TypeError:
-        raise InputError(f"{name}: expected (low, high), got {x!r}") from None
-    if lo > hi:
-        raise InputError(f"{name}: expected (low, high) with low <= high, got {x!r}")
-    return lo, hi
