@@ -1,0 +1,282 @@
+"""A real client: Blender imports facecap's exports and shows the frames we wrote.
+
+One small known take (a curved 16 x 16 quad sheet in mm with a UV seam, 30
+frames at 60 Hz, each frame the rest shape plus a known blend of three smooth
+displacement fields, and for USD a known rigid head motion) is written with
+facecap's writers, imported by Blender 5.0.1 (``bpy`` in its own environment,
+``blender_env.py``) with the settings ``docs/clients.md`` gives artists, and
+evaluated at the first, middle and last frames (``blender_probe.py``: the
+depsgraph's mesh with modifiers, caches, shape keys and constraints applied,
+in world space). The truth is the arrays given to the writers, converted to
+Blender's world: metres, Z up (facecap's Y-up ``(x, y, z)`` mm is Blender's
+``(x, -z, y) / 1000``). Every format must agree within 1e-3 mm at take frame
+``k`` = Blender scene frame ``k``.
+
+Vertex order: Blender's vertices are matched to ours by nearest position at the
+first frame, and each must have exactly one of ours within the tolerance (the
+next nearest is a grid step away); formats that carry vertex order (USD, OBJ,
+and the point caches, which index vertices by position in the file) must keep
+it exactly, formats that may split vertices along UV seams (glTF) must map
+every Blender vertex to one of ours and cover all of ours.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from facecap.io import UsdPerformanceWriter, write_mesh
+from facecap.structures import Mesh
+
+from blender_env import BlenderEnvironmentError, blender_python, run_blender_script
+
+PROBE = Path(__file__).with_name("blender_probe.py")
+RATE = 60.0
+N_FRAMES = 30
+CHECK_FRAMES = (0, N_FRAMES // 2, N_FRAMES - 1)
+TOLERANCE_MM = 1e-3
+GRID = 16
+SPACING_MM = 8.0
+
+
+# ----------------------------------------------------------------- the take
+
+
+def _sheet() -> Mesh:
+    """A face-sized curved sheet of quads (mm), UVs with a seam down the middle column."""
+    u, v = np.meshgrid(np.linspace(0.0, 1.0, GRID), np.linspace(0.0, 1.0, GRID))
+    x, y = (u.ravel() - 0.5) * SPACING_MM * (GRID - 1), (v.ravel() - 0.5) * SPACING_MM * (GRID - 1)
+    V = np.stack([x, y, 30.0 - 0.006 * x**2 - 0.003 * y**2], axis=1)
+    a = (np.arange(GRID - 1)[:, None] * GRID + np.arange(GRID - 1)[None]).ravel()
+    quads = np.stack([a, a + 1, a + GRID + 1, a + GRID], axis=1)
+    # Two UV islands: quads left of the middle column use the vertex's own UV,
+    # quads right of it a copy shifted by 0.05 in u, so the middle column's
+    # vertices carry two UVs (a seam, where glTF must split vertices).
+    n = GRID * GRID
+    column = np.arange(n) % GRID
+    uvs = np.concatenate([np.stack([u.ravel(), v.ravel()], 1), np.stack([u.ravel() + 0.05, v.ravel()], 1)])
+    right = (quads % GRID).min(axis=1) >= GRID // 2
+    uv_indices = np.where(right[:, None] & (column[quads] >= GRID // 2), quads + n, quads)
+    return Mesh(
+        V,
+        np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]]),
+        polygon_sizes=np.full(len(quads), 4),
+        polygon_indices=quads.ravel(),
+        uvs=uvs,
+        uv_indices=uv_indices.ravel(),
+    )
+
+
+class Take:
+    """The known take: rest sheet, displacement fields, weights, frames and head motion (mm, Y up)."""
+
+    def __init__(self) -> None:
+        self.mesh = _sheet()
+        V = self.mesh.vertices
+        self.targets = np.stack(
+            [
+                np.stack([2.0 * np.sin(V[:, 1] / 25.0), np.zeros(len(V)), 3.0 * np.exp(-(V[:, 0] ** 2) / 900.0)], 1),
+                np.stack([np.zeros(len(V)), 1.5 * np.cos(V[:, 0] / 30.0), 0.02 * V[:, 1]], 1),
+                np.stack([0.01 * V[:, 0], 0.01 * V[:, 1], -1.0 + 0.0 * V[:, 2]], 1),
+            ]
+        )  # (3, n, 3) mm
+        t = np.arange(N_FRAMES) / RATE
+        # Negative and > 1 weights on purpose: a client that clamps to [0, 1] shows.
+        self.weights = np.stack(
+            [np.sin(2 * np.pi * 2.0 * t), 0.5 + 0.8 * np.cos(2 * np.pi * 1.3 * t), 1.6 * t * RATE / N_FRAMES], 1
+        )  # (T, 3)
+        self.frames = V[None] + np.einsum("tk,knc->tnc", self.weights, self.targets)  # (T, n, 3) mm
+        self.head_pose = np.tile(np.eye(4), (N_FRAMES, 1, 1))
+        for k in range(N_FRAMES):
+            yaw, pitch = 0.2 * np.sin(k / 5.0), 0.1 * np.cos(k / 7.0)
+            cy, sy, cp, sp = np.cos(yaw), np.sin(yaw), np.cos(pitch), np.sin(pitch)
+            Ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+            Rx = np.array([[1, 0, 0], [0, cp, -sp], [0, sp, cp]])
+            self.head_pose[k, :3, :3] = Ry @ Rx
+            self.head_pose[k, :3, 3] = [40.0 * k / N_FRAMES, 1500.0, -20.0 + 3.0 * np.sin(k)]
+
+    def world_frames(self) -> np.ndarray:
+        """The frames placed by the head motion (mm, Y up): what the USD stage shows."""
+        R, tr = self.head_pose[:, :3, :3], self.head_pose[:, :3, 3]
+        return np.einsum("tij,tnj->tni", R, self.frames) + tr[:, None]
+
+
+def to_blender(points_mm: np.ndarray) -> np.ndarray:
+    """facecap's (x, y, z) in mm, Y up, as Blender's world: metres, Z up, (x, -z, y) / 1000."""
+    p = np.asarray(points_mm, dtype=np.float64)
+    return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1) / 1000.0
+
+
+# ------------------------------------------------------------ the Blender run
+
+
+def _job(name: str, importer: str, path: Path, out_dir: Path, *, options: dict, take_frames=CHECK_FRAMES,
+         frames=None, **extra) -> dict:
+    """A probe job; Blender scene frame ``frames[i]`` must show take frame ``take_frames[i]`` (default: the same)."""
+    return {
+        "name": name, "importer": importer, "path": str(path), "options": options,
+        "fps": int(RATE), "fps_base": 1.0, "frames": list(take_frames if frames is None else frames),
+        "take_frames": list(take_frames), "out": str(out_dir / f"{name}.npz"), **extra,
+    }
+
+
+def _write_inputs(take: Take, d: Path) -> tuple[list[dict], dict[str, np.ndarray]]:
+    """Write every format with facecap's writers; return the probe jobs and each job's truth (mm, Y up)."""
+    jobs, truth = [], {}
+    out = d / "blender"
+    out.mkdir()
+
+    # USD, one self-contained file, with the head motion on /Head.
+    with UsdPerformanceWriter(d / "take.usdc", take.mesh, RATE, N_FRAMES) as writer:
+        for start in range(0, N_FRAMES, 8):
+            writer.write_frames(start, take.frames[start:start + 8], head_pose=take.head_pose[start:start + 8])
+    jobs.append(_job("usd", "usd", d / "take.usdc", out, options={}))
+    truth["usd"] = take.world_frames()
+
+    # USD in value clips of 8 frames (what long takes get), no head motion.
+    with UsdPerformanceWriter(d / "clips.usdc", take.mesh, RATE, N_FRAMES, clip_frames=8) as writer:
+        writer.write_frames(0, take.frames)
+    assert writer.use_clips
+    jobs.append(_job("usd_clips", "usd", d / "clips.usdc", out, options={}))
+    truth["usd_clips"] = take.frames
+
+    # OBJ: one frame of the sequence (mm file, so global_scale 0.001 to metres).
+    middle = CHECK_FRAMES[1]
+    write_mesh(take.mesh, d / "frame.obj", vertices=take.frames[middle])
+    jobs.append(_job("obj", "obj", d / "frame.obj", out, options={"global_scale": 0.001},
+                     take_frames=[middle], frames=[0]))
+    truth["obj"] = take.frames
+    return jobs, truth
+
+
+@pytest.fixture(scope="session")
+def blender() -> Path:
+    """The Blender environment's interpreter, installed on first use (a failure fails, with pip's output)."""
+    try:
+        return blender_python()
+    except BlenderEnvironmentError as exc:
+        pytest.fail(f"could not set up Blender for the client check:\n{exc}", pytrace=False)
+
+
+@pytest.fixture(scope="module")
+def imported(blender: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict]:
+    """Every format imported in one Blender process: per job, its arrays, info and truth."""
+    d = tmp_path_factory.mktemp("blender_client")
+    take = Take()
+    jobs, truth = _write_inputs(take, d)
+    (d / "jobs.json").write_text(json.dumps({"jobs": jobs}))
+    try:
+        log = run_blender_script(blender, PROBE, str(d / "jobs.json"), timeout=300)
+    except BlenderEnvironmentError as exc:
+        pytest.fail(f"the Blender probe failed:\n{exc}", pytrace=False)
+    results = {}
+    for job in jobs:
+        with np.load(job["out"]) as z:
+            arrays = {k: z[k] for k in z.files}
+        if "error" in arrays:
+            results[job["name"]] = {"error": str(arrays["error"]), "log": log}
+            continue
+        info = json.loads(str(arrays.pop("info")))
+        results[job["name"]] = {"arrays": arrays, "info": info, "job": job, "truth": truth[job["name"]],
+                                "take": take, "log": log}
+    return results
+
+
+def _result(imported: dict, name: str) -> dict:
+    r = imported[name]
+    if "error" in r:
+        pytest.fail(f"Blender could not import the {name} export:\n{r['error']}", pytrace=False)
+    return r
+
+
+# ------------------------------------------------------------------- checks
+
+
+def vertex_map(blender_m: np.ndarray, ours_m: np.ndarray, *, tolerance_m: float) -> np.ndarray:
+    """For each Blender vertex, the index of our vertex at its position, asserting it is unique.
+
+    Every Blender vertex must have one of ours within ``tolerance_m`` and the
+    next nearest of ours at least half a grid step away (so the match is not a
+    guess); every one of ours must be matched at least once.
+    """
+    distance, index = cKDTree(ours_m).query(blender_m, k=2)
+    far = distance[:, 0] > tolerance_m
+    assert not far.any(), (
+        f"{far.sum()} of Blender's {len(blender_m)} vertices have none of ours within {tolerance_m * 1e3:g} mm "
+        f"(worst {distance[:, 0].max() * 1e3:.4g} mm)"
+    )
+    assert distance[:, 1].min() > 0.5 * SPACING_MM / 1000.0, "a Blender vertex lies near two of ours"
+    missing = np.setdiff1d(np.arange(len(ours_m)), index[:, 0])
+    assert missing.size == 0, f"{missing.size} of our vertices have no Blender vertex, e.g. {missing[:5]}"
+    return index[:, 0]
+
+
+def frame_errors_mm(r: dict, mapping: np.ndarray) -> dict[int, float]:
+    """Largest distance (mm) between Blender's vertices and ours at each checked Blender frame."""
+    errors = {}
+    for frame, take_frame in zip(r["job"]["frames"], r["job"]["take_frames"]):
+        ours = to_blender(r["truth"][take_frame])[mapping]
+        errors[frame] = float(np.linalg.norm(r["arrays"][f"frame_{frame}"] - ours, axis=1).max() * 1000.0)
+    return errors
+
+
+def _check_positions(r: dict, *, keeps_order: bool) -> np.ndarray:
+    """Match Blender's vertices to ours at the first checked frame, then compare every checked frame."""
+    job = r["job"]
+    first = to_blender(r["truth"][job["take_frames"][0]])
+    mapping = vertex_map(r["arrays"][f"frame_{job['frames'][0]}"], first, tolerance_m=TOLERANCE_MM / 1000.0)
+    if keeps_order:
+        assert np.array_equal(mapping, np.arange(len(first))), "Blender reordered the vertices"
+    errors = frame_errors_mm(r, mapping)
+    print(f"{job['name']}: max error (mm) per Blender frame: {errors}")
+    assert max(errors.values()) < TOLERANCE_MM, errors
+    return mapping
+
+
+def _polygons(sizes: np.ndarray, corners: np.ndarray, uvs: np.ndarray) -> list[tuple[tuple[int, ...], tuple]]:
+    """Polygons as (corners, corner UVs) rotated to start at their smallest vertex (orientation kept), sorted."""
+    out, start = [], 0
+    for s in sizes:
+        p, q = list(corners[start:start + s]), [tuple(np.round(uv, 6)) for uv in uvs[start:start + s]]
+        start += s
+        i = int(np.argmin(p))
+        out.append((tuple(p[i:] + p[:i]), tuple(q[i:] + q[:i])))
+    return sorted(out)
+
+
+def _check_polygons(r: dict, mapping: np.ndarray) -> None:
+    """Blender's polygons are ours (corners mapped to our vertices, same orientation), with our UVs."""
+    mesh = r["take"].mesh
+    sizes, corners = mesh.export_polygons()
+    ours = _polygons(sizes, corners, mesh.uvs[mesh.uv_indices])
+    a = r["arrays"]
+    theirs = _polygons(a["polygon_sizes"], mapping[a["polygon_vertices"]], a["corner_uvs"])
+    assert [p for p, _ in theirs] == [p for p, _ in ours], "Blender's polygons are not ours"
+    uv_error = max(np.abs(np.subtract(t, o)).max() for (_, t), (_, o) in zip(theirs, ours))
+    assert uv_error < 1e-6, f"corner UVs differ by up to {uv_error:.3g}"
+
+
+def test_usd_single_file_with_head_motion(imported: dict) -> None:
+    r = _result(imported, "usd")
+    _check_polygons(r, _check_positions(r, keeps_order=True))
+    info = r["info"]
+    # The importer sets the scene to the stage's time codes: take frame k is scene frame k.
+    assert (info["scene_frame_start"], info["scene_frame_end"]) == (0, N_FRAMES - 1)
+    assert "MESH_SEQUENCE_CACHE" in info["object"]["modifiers"]
+    assert "TRANSFORM_CACHE" in info["object"]["constraints"]  # the head motion, merged from /Head
+    assert info["object"]["uv_layers"] == ["st"]
+
+
+def test_usd_value_clips(imported: dict) -> None:
+    r = _result(imported, "usd_clips")
+    _check_polygons(r, _check_positions(r, keeps_order=True))
+    assert (r["info"]["scene_frame_start"], r["info"]["scene_frame_end"]) == (0, N_FRAMES - 1)
+
+
+def test_obj_frame(imported: dict) -> None:
+    r = _result(imported, "obj")
+    _check_polygons(r, _check_positions(r, keeps_order=True))
