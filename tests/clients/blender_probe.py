@@ -19,6 +19,8 @@ Blender process for all of them (bpy's start-up is paid once). A job:
 - ``mesh_cache`` (optional): settings of a ``MESH_CACHE`` modifier added to
   the imported mesh (``filepath``, ``cache_format``, axes, frame settings:
   any attribute of ``bpy.types.MeshCacheModifier``);
+- ``shape_key_range`` (optional): ``[low, high]`` set as every shape key's
+  slider range after the import (Blender clamps a shape key's value to it);
 - ``frames``: the scene frames to evaluate.
 
 For each frame the scene is set (``scene.frame_set``), the depsgraph is
@@ -30,7 +32,8 @@ the default unit scale), ``frames``, ``rest_local`` (the mesh data's own
 vertices, object space, before any modifier or shape key), ``polygon_sizes``,
 ``polygon_vertices``, ``corner_uvs`` (the first UV layer, one per polygon
 corner, when there is one), and a JSON ``info`` (objects, modifiers, constraints,
-shape keys and their slider ranges, the scene's frame range, timings), or
+shape keys and their slider ranges as imported and as evaluated, the scene's
+frame range, timings), or
 only ``error`` (the traceback) when the job failed. Failures are recorded, not
 raised, so one bad import does not hide the others' results.
 """
@@ -104,6 +107,11 @@ def run_job(job: dict) -> dict:
     if len(objects) != 1:
         raise RuntimeError(f"expected one mesh object, the import made {[o.name for o in objects]}")
     ob = objects[0]
+    shape_key_sliders = _describe(ob)["shape_keys"]  # as the importer left them
+    if job.get("shape_key_range") and ob.data.shape_keys:
+        low, high = job["shape_key_range"]
+        for key in ob.data.shape_keys.key_blocks:
+            key.slider_min, key.slider_max = float(low), float(high)
     if job.get("mesh_cache"):
         modifier = ob.modifiers.new("facecap cache", "MESH_CACHE")
         for key, value in job["mesh_cache"].items():
@@ -121,6 +129,7 @@ def run_job(job: dict) -> dict:
     info = {
         "blender": bpy.app.version_string,
         "object": _describe(ob),
+        "imported_shape_keys": shape_key_sliders,
         "other_objects": [o.name for o in scene.objects if o is not ob],
         "scene_frame_start": scene.frame_start,
         "scene_frame_end": scene.frame_end,
