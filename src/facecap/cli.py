@@ -52,7 +52,7 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
                    help="marker centre height above the skin, mm; 0: markers on the skin (the paper) [1.5]")
     p.add_argument("--rest-average", type=float, default=0.1,
                    help="the warp's rest markers: Gaussian average round --rest-frame, sigma in s; 0: that frame alone [0.1]")
-    p.add_argument("--export", default="", help="extra exports, comma-separated: obj, ply, usd")
+    _add_output_options(p)
     p.add_argument("--unmarked-pieces", choices=("carry", "rigid"), default="carry",
                    help="pieces with no marker (eyes, teeth): follow the nearest marked surface, or stay [carry]")
     p.add_argument("--batch-frames", type=int, default=32, help="frames per dense product [32]")
@@ -76,14 +76,13 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     if auto:
         scan = check_take_units(scan, take, corr, rest_frame=args.rest_frame, convert=True)
     stabilize = _stabilize_option(args.stabilize)
-    exports = _exports_option(args.export)
     if args.batch_frames < 1:
         raise FacecapError(f"--batch-frames: expected a positive integer, got {args.batch_frames}")
     result = animate_scan(
         scan, take, corr, args.out,
         rest_frame=args.rest_frame, ks=args.ks, kb=args.kb, stabilize=stabilize,
         smooth=not args.no_smooth, marker_offset_mm=args.marker_offset, rest_average_s=args.rest_average,
-        exports=exports, unmarked_pieces=args.unmarked_pieces,
+        **_output_options(args), unmarked_pieces=args.unmarked_pieces,
         batch_frames=args.batch_frames, precision=args.precision, progress=not args.quiet,
         extra_metadata={"map": str(args.map)},
     )
@@ -162,9 +161,64 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _exports_option(text: str) -> list[str]:
-    """``--export obj,usd`` -> ['obj', 'usd'] (the writer names any it does not know)."""
-    return [e.strip().lower() for e in text.split(",") if e.strip()]
+def _add_output_options(p: argparse.ArgumentParser) -> None:
+    """What a command that writes a result writes: exports, vertices.npy, the rig's precision."""
+    from .io.export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES
+    from .io.write_performance import EXPORT_FORMATS
+
+    p.add_argument("--export", default="", help=f"exports, comma-separated: {', '.join(EXPORT_FORMATS)}")
+    p.add_argument("--no-vertices", action="store_true",
+                   help="leave out vertices.npy: the result is the exact compact rig (rig/) alone")
+    p.add_argument("--rig-precision", choices=("float32", "int16"), default="float32",
+                   help="storage of the rig's basis: float32 (exact) or int16 (half the size, bound in rig/rig.json) "
+                        "[float32]")
+    p.add_argument("--gltf-targets", type=int, default=DEFAULT_GLTF_TARGETS,
+                   help=f"most morph targets of the glTF export (principal components beyond) [{DEFAULT_GLTF_TARGETS}]")
+    p.add_argument("--review-vertices", type=int, default=DEFAULT_REVIEW_VERTICES,
+                   help=f"most vertices of the glTF review mesh (decimated beyond) [{DEFAULT_REVIEW_VERTICES}]")
+
+
+def _output_options(args: argparse.Namespace) -> dict:
+    """The keyword arguments of :func:`_add_output_options`' options, checked before any long work."""
+    from .io.export_result import parse_export_formats
+
+    if args.gltf_targets < 1 or args.review_vertices < 3:
+        raise FacecapError("--gltf-targets and --review-vertices: expected positive counts")
+    return {
+        "exports": parse_export_formats(args.export),
+        "write_vertices": not args.no_vertices,
+        "rig_precision": args.rig_precision,
+        "export_options": {"gltf_targets": args.gltf_targets, "review_vertices": args.review_vertices},
+    }
+
+
+def _add_export(sub: argparse._SubParsersAction) -> None:
+    from .io.write_performance import EXPORT_FORMATS
+
+    p = sub.add_parser("export", help="export a finished result to other formats")
+    p.add_argument("result", help="a facecap result folder")
+    p.add_argument("--format", required=True, help=f"comma-separated: {', '.join(EXPORT_FORMATS)}")
+    p.add_argument("--out", default=None, help="folder to write into [the result folder]")
+    p.add_argument("--gltf-targets", type=int, default=None, help="most morph targets of the glTF [64]")
+    p.add_argument("--review-vertices", type=int, default=None, help="most vertices of the glTF review mesh [100000]")
+    p.set_defaults(func=_cmd_export)
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    from .io.export_result import export_result, parse_export_formats
+    from .io.read_result import read_result
+
+    formats = parse_export_formats(args.format)
+    result = read_result(args.result)
+    options = {k: v for k, v in (("gltf_targets", args.gltf_targets), ("review_vertices", args.review_vertices))
+               if v is not None}
+    report = export_result(result, formats, out_dir=args.out, progress=not args.quiet, **options)
+    if not args.quiet:
+        for fmt, entry in report.items():
+            sizes = ", ".join(f"{name} ({size / 1e6:.1f} MB)" if isinstance(size, int) and not name.endswith("/")
+                              else name for name, size in entry.get("files", {}).items())
+            print(f"{fmt}: {sizes}")
+    return 0
 
 
 def _stabilize_option(value: str) -> bool | str | list[str]:
@@ -212,7 +266,7 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("blend", help="reconstruct a take from registered bases (NNLS blendshapes)")
     p.add_argument("--bases", required=True, help="bases folder from register-scans")
     p.add_argument("--markers", required=True, help="mocap take")
-    p.add_argument("--export", default="", help="extra exports, comma-separated: obj, ply, usd")
+    _add_output_options(p)
     p.add_argument("--out", required=True, help="output folder")
     p.set_defaults(func=_cmd_blend)
 
@@ -228,7 +282,7 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--template-texture", default=None, help="coloured scan of the template's expression")
     p.add_argument("--color-alignment", action="store_true", help="slide by skin colour (experimental)")
     p.add_argument("--refine", action="store_true", help="fine-scale registration (experimental)")
-    p.add_argument("--export", default="")
+    _add_output_options(p)
     p.add_argument("--out", required=True, help="output folder (holds plan.json, bases/, animation/)")
     p.set_defaults(func=_cmd_scans_pipeline)
 
@@ -267,12 +321,17 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
 def _cmd_blend(args: argparse.Namespace) -> int:
     from .blendshapes.scan_workflow import blend_take
 
-    exports = _exports_option(args.export)
-    report = blend_take(args.bases, args.markers, args.out, exports=exports, progress=not args.quiet)
+    report = blend_take(args.bases, args.markers, args.out, **_blend_options(args), progress=not args.quiet)
     if not args.quiet:
         print(f"wrote {args.out}: {report['n_frames']} frames from {report['n_bases']} bases, "
               f"marker residual mean {report['marker_residual_mm']['mean']:.3f} mm")
     return 0
+
+
+def _blend_options(args: argparse.Namespace) -> dict:
+    options = _output_options(args)
+    options.pop("export_options")  # the blend's rig is small: its glTF is exact (one target per basis)
+    return options
 
 
 def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
@@ -291,8 +350,7 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
                            marker_offset_mm=args.marker_offset, refine=args.refine,
                            template_texture_path=args.template_texture,
                            align_colors=args.color_alignment, progress=not args.quiet)
-    exports = _exports_option(args.export)
-    report = blend_take(out / "bases", args.markers, out / "animation", exports=exports, progress=not args.quiet)
+    report = blend_take(out / "bases", args.markers, out / "animation", **_blend_options(args), progress=not args.quiet)
     if not args.quiet:
         print(f"wrote {out}: plan.json, bases/, animation/ ({report['n_frames']} frames)")
     return 0
@@ -327,6 +385,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_animate(sub)
     _add_info(sub)
     _add_evaluate(sub)
+    _add_export(sub)
     _add_scan_commands(sub)
     _add_demo(sub)
     for action in sub.choices.values():  # let -q/--quiet also follow the command

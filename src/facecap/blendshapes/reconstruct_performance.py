@@ -8,7 +8,9 @@ from typing import Any, Iterable, NamedTuple
 import numpy as np
 
 from ..errors import InputError
+from ..io.result_rig import ResultRig
 from ..io.write_performance import PerformanceWriter
+from ..units import mm_per_unit
 from ..structures import Mesh
 from .nnls_weights import nnls_weights
 
@@ -171,12 +173,20 @@ def write_blended_performance(
     metadata: dict[str, Any] | None = None,
     extra_files: dict[str, Any] | None = None,
     batch_frames: int = 64,
+    write_vertices: bool = True,
+    rig_precision: str = "float32",
+    export_options: dict[str, Any] | None = None,
     progress: bool = True,
 ) -> Path:
-    """Stream ``m_t = c + sum_i w_t,i (d_i - c)`` to an output folder like ``facecap animate`` writes.
+    """Write ``m_t = c + sum_i w_t,i (d_i - c)`` to an output folder like ``facecap animate`` writes.
 
     ``c`` is the bases' centroid (see ``output_from_bases``); with weights
-    summing to one this is eq. 12's ``sum_i w_t,i d_i``.
+    summing to one this is eq. 12's ``sum_i w_t,i d_i``. The result is a rig
+    (``rig/``, :class:`~facecap.io.ResultRig`) about the template ``r``:
+    ``m_t = r + sum_i w_t,i (d_i - r) + (sum_i w_t,i - 1) (r - c)``, the same
+    thing exactly, with the template as the rest shape blendshape clients
+    expect and one shape more for the weights' sum. ``vertices.npy`` is
+    evaluated from it.
 
     Parameters
     ----------
@@ -198,13 +208,20 @@ def write_blended_performance(
         ``facecap animate`` writes it: saved as ``head_motion.npy`` (in the
         template's unit) and carried by the USD export as the mesh's
         transform. The vertices stay stabilised.
-    exports : iterable of {'obj', 'ply', 'usd'}
+    exports : iterable of str
+        See :data:`facecap.io.EXPORT_FORMATS`.
     metadata : dict, optional
         Added to ``performance.json``.
     extra_files : dict of str to array or str, optional
         Written into the folder before it is moved into place: ``.npy`` names
         get arrays, other names get text.
     batch_frames : int, default 64
+    write_vertices : bool, default True
+        Write ``vertices.npy`` besides the rig.
+    rig_precision : {'float32', 'int16'}, default 'float32'
+        Storage of the rig's shapes.
+    export_options : dict, optional
+        Passed to :func:`facecap.io.export_result`.
     progress : bool, default True
 
     Returns
@@ -226,22 +243,25 @@ def write_blended_performance(
     if output_from_bases is not None:
         pose = np.asarray(output_from_bases, dtype=np.float64)
         B64 = B64 @ pose[:3, :3].T + pose[:3, 3]
-    centre64 = B64.reshape(-1, 3).mean(axis=0)
-    flat = (B64 - centre64).astype(np.float32).reshape(K, n * 3)  # float32 only once centred
-    centre = centre64.astype(np.float32)
+    centre = B64.reshape(-1, 3).mean(axis=0)
+    rest = template.vertices.astype(np.float64)
+    to_unit = 1.0 / mm_per_unit(template.source_unit)
+    shapes = np.concatenate([B64 - rest[None], (rest - centre)[None]]).astype(np.float32) * np.float32(to_unit)
+    coefficients = np.concatenate([W, (W.astype(np.float64).sum(axis=1, keepdims=True) - 1.0).astype(np.float32)], axis=1)
     del B64
-
-    def compute(start: int, stop: int, out: np.ndarray) -> None:
-        np.matmul(W[start:stop], flat, out=out.reshape(stop - start, n * 3))
-        out += centre
+    rig = ResultRig((rest * to_unit).astype(np.float32), shapes, coefficients, units=template.source_unit,
+                    names=tuple(f"basis_{k}" for k in range(K)) + ("weight_sum",))
 
     pose = None
     if head_motion is not None:
         pose = np.asarray(head_motion, dtype=np.float64)
         if pose.shape != (T, 4, 4) or not np.all(np.isfinite(pose)):
             raise InputError(f"head_motion: expected finite ({T}, 4, 4) transforms, got {pose.shape}")
-    with PerformanceWriter(out_dir, mesh=template, rate=rate, n_frames=T, exports=exports) as writer:
-        writer.stream(compute, batch_frames=batch_frames, head_pose=pose, progress=progress, desc="blend")
+    with PerformanceWriter(out_dir, mesh=template, rate=rate, n_frames=T, exports=exports, vertices=write_vertices,
+                           export_options={"progress": progress, **(export_options or {})}) as writer:
+        writer.write_rig(rig, precision=rig_precision)
+        if writer.needs_frames:
+            writer.stream_rig(batch_frames=batch_frames, head_pose=pose, progress=progress, desc="blend")
         if pose is not None:
             in_unit = pose.copy()
             in_unit[:, :3, 3] = template.to_source_unit(in_unit[:, :3, 3])

@@ -226,12 +226,16 @@ def blend_take(
     *,
     exports: Sequence[str] = (),
     marker_unit: str | None = None,
+    write_vertices: bool = True,
+    rig_precision: str = "float32",
     progress: bool = True,
 ) -> dict[str, Any]:
     """Rebuild every frame of a take from the bases (eq. 12) and write it like ``facecap animate``.
 
-    Besides the usual output folder, writes ``weights.npy`` (T, K), ``weights.csv``,
-    ``bases.npy`` and ``blend_report.json`` (per-frame marker residuals).
+    Besides the usual output folder (with the rig, and ``vertices.npy`` unless
+    ``write_vertices`` is off), writes ``weights.npy`` (T, K), ``weights.csv``,
+    ``bases.npy``, ``markers.npy`` (the conditioned markers in the output frame)
+    and ``blend_report.json`` (per-frame marker residuals).
     """
     folder = read_registered_scans(bases_dir)
     take = read_markers(markers_path, unit=marker_unit)
@@ -264,13 +268,18 @@ def blend_take(
         },
         "weights_s": time.perf_counter() - t,
     }
+    A = np.asarray(folder["output_from_mocap"], dtype=np.float64)
+    markers_out = folder["template"].to_source_unit(conditioned.positions @ A[:3, :3].T + A[:3, 3]).astype(np.float32)
     write_blended_performance(
         out_dir, folder["template"], folder["bases"], weights, rate=take.rate,
         output_from_bases=folder["output_from_mocap"], head_motion=head_motion, exports=exports, progress=progress,
+        write_vertices=write_vertices, rig_precision=rig_precision,
         metadata={"source_files": {"bases": str(bases_dir), "markers": str(markers_path)},
-                  "rest_frame": int(conditioning.get("rest_frame", 0)), "planned_frames": frames},
+                  "rest_frame": int(conditioning.get("rest_frame", 0)), "planned_frames": frames,
+                  "markers": list(labels)},
         extra_files={"weights.npy": weights, "weights.csv": header + "\n" + "\n".join(rows) + "\n",
-                     "bases.npy": folder["bases"], "blend_report.json": json.dumps(report, indent=1)},
+                     "bases.npy": folder["bases"], "blend_report.json": json.dumps(report, indent=1),
+                     "markers.npy": markers_out},
     )
     return report
 

@@ -14,12 +14,13 @@ import numpy as np
 
 from ..errors import FacecapWarning, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
+from ..io.result_rig import ResultRig
 from ..io.write_performance import PerformanceWriter
 from ..markers.condition_take import condition_take
 from ..markers.rigid_fit import rigid_fit
 from ..mesh.check_mesh import check_mesh
 from ..structures import MarkerSequence, Mesh
-from ..units import check_take_units
+from ..units import check_take_units, mm_per_unit
 from ..validate import as_positive
 from .basis_product import Precision
 from .factor_spd import Backend
@@ -198,6 +199,9 @@ def animate_scan(
     marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
     rest_average_s: float = DEFAULT_REST_AVERAGE_S,
     exports: Iterable[str] = (),
+    write_vertices: bool = True,
+    rig_precision: str = "float32",
+    export_options: dict[str, Any] | None = None,
     unmarked_pieces: UnmarkedPieces = "carry",
     batch_frames: int = 32,
     backend: Backend = "auto",
@@ -245,8 +249,17 @@ def animate_scan(
         ``rest_frame``, so the rest frame's noise does not offset every
         frame; assumes the face holds its rest expression that long (as the
         bilateral filter's rest does). 0: the rest frame alone (the paper).
-    exports : iterable of {'obj', 'ply', 'usd'}
-        Extra per-frame exports.
+    exports : iterable of str
+        Exports, see :data:`facecap.io.EXPORT_FORMATS`.
+    write_vertices : bool, default True
+        Write ``vertices.npy``. The exact compact form (``rig/``: the scan,
+        the shell's basis and each frame's marker displacements, see
+        :class:`~facecap.io.ResultRig`) is always written; without
+        ``vertices.npy`` and per-frame exports no frame is computed at all.
+    rig_precision : {'float32', 'int16'}, default 'float32'
+        Storage of the rig's basis (int16: half the size, bound in ``rig/rig.json``).
+    export_options : dict, optional
+        Passed to :func:`facecap.io.export_result` (glTF targets, review mesh size).
     unmarked_pieces : {'carry', 'rigid'}, default 'carry'
         What pieces of the scan without markers do.
     batch_frames : int, default 32
@@ -355,9 +368,16 @@ def animate_scan(
         "first_frame": markers.first_frame,
         **(extra_metadata or {}),
     }
-    with PerformanceWriter(out_dir, mesh=scan, rate=markers.rate, n_frames=T, exports=exports) as writer:
-        writer.stream(lambda start, stop, out: solver.deform_into(disp32[start:stop], rest32, out),
-                      batch_frames=batch_frames, head_pose=head_pose, progress=progress, desc="animate")
+    with PerformanceWriter(out_dir, mesh=scan, rate=markers.rate, n_frames=T, exports=exports,
+                           vertices=write_vertices,
+                           export_options={"progress": progress, **(export_options or {})}) as writer:
+        to_unit = np.float32(1.0 / mm_per_unit(scan.source_unit))
+        writer.write_rig(ResultRig(rest32 * to_unit, solver.basis, disp32 * to_unit, units=scan.source_unit,
+                                   names=prepared.labels), precision=rig_precision)
+        if writer.needs_frames:
+            writer.stream(lambda start, stop, out: solver.deform_into(disp32[start:stop], rest32, out),
+                          batch_frames=batch_frames, head_pose=head_pose, progress=progress, desc="animate")
+        np.save(writer.path("markers.npy"), (face_markers * to_unit).astype(np.float32))
         timings["deform_and_write_s"] = time.perf_counter() - t
         timings["frames_per_second"] = T / max(timings["deform_and_write_s"], 1e-9)
         timings["total_s"] = time.perf_counter() - t0

@@ -13,6 +13,17 @@ In the order a user meets them:
   folder every command writes; :func:`read_performance_info` reads its
   metadata back. :class:`UsdPerformanceWriter` (``write_usd.py``) is its USD
   export (usd-core is imported only when a USD file is written).
+- :func:`write_mdd` and :func:`write_pc2` (``write_point_cache.py``): streamed
+  MDD and PC2 point caches (Blender's Mesh Cache modifier, 3ds Max's Point
+  Cache); :func:`write_alembic` (``write_alembic.py``): a streamed Alembic
+  archive (the optional alembic3d is imported only when one is written).
+- :class:`ResultRig` (``result_rig.py``): the exact compact form of a result
+  linear in per-frame coefficients (``rig/``), :func:`write_rig` / :func:`read_rig`;
+  :func:`read_result` (``read_result.py``) opens any finished result folder and
+  gives its frames lazily from ``vertices.npy`` or the rig;
+  :func:`export_result` (``export_result.py``) writes a finished result to
+  artists' formats, among them :func:`write_usd_blendshapes`
+  (``write_usd_blendshapes.py``): the rig as UsdSkel blend shapes.
 - :func:`write_scan_plan` / :func:`read_scan_plan` (``scan_plan.py``) and
   :func:`write_registered_scans` / :func:`read_registered_scans`
   (``registered_scans.py``): the files of the scan workflow (``plan.json``, the
@@ -34,8 +45,14 @@ from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_reg
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
 from .write_mesh import write_mesh
-from .write_performance import EXPORT_FORMATS, PerformanceWriter, read_performance_info
+from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, PerformanceWriter, read_performance_info
 from .write_usd import UsdPerformanceWriter
+from .write_point_cache import write_mdd, write_pc2
+from .write_alembic import write_alembic
+from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, read_rig, write_rig
+from .read_result import MESH_FILE, Result, read_result
+from .write_usd_blendshapes import DEFAULT_BLENDSHAPE_TOLERANCE_MM, write_usd_blendshapes
+from .export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES, export_result, parse_export_formats
 
 __all__ = [
     "read_mesh",
@@ -51,6 +68,24 @@ __all__ = [
     "EXPORT_FORMATS",
     "read_performance_info",
     "UsdPerformanceWriter",
+    "write_mdd",
+    "write_pc2",
+    "write_alembic",
+    "STREAMED_FORMATS",
+    "ResultRig",
+    "write_rig",
+    "read_rig",
+    "RIG_FORMAT",
+    "RIG_PRECISIONS",
+    "read_result",
+    "Result",
+    "MESH_FILE",
+    "write_usd_blendshapes",
+    "DEFAULT_BLENDSHAPE_TOLERANCE_MM",
+    "export_result",
+    "parse_export_formats",
+    "DEFAULT_GLTF_TARGETS",
+    "DEFAULT_REVIEW_VERTICES",
     "write_scan_plan",
     "read_scan_plan",
     "PLAN_FORMAT",

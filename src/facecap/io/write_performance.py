@@ -4,10 +4,19 @@ Layout of a finished folder (see ``docs/output_format.md``):
 
 - ``vertices.npy``: float32 ``(T, n, 3)`` in the scan's own coordinates, units
   and vertex order; written frame block by frame block, readable with
-  ``np.load(path, mmap_mode="r")``.
-- ``faces.npy``: int64 ``(m, 3)`` triangles (polygons are kept in the exports).
-- ``performance.json``: rate, units, frame count, source files, parameters.
-- optional exports: ``obj/frame_000000.obj ...``, ``ply/...``, ``performance.usdc``.
+  ``np.load(path, mmap_mode="r")``. On by default; ``vertices=False`` leaves
+  it out where the result is a rig.
+- ``rig/``: the exact compact form (:mod:`facecap.io.result_rig`) of a result
+  linear in its per-frame coefficients, written by :meth:`PerformanceWriter.write_rig`.
+- ``faces.npy``: int64 ``(m, 3)`` triangles; ``mesh.npz``: the scan's rest
+  vertices, triangles, polygons and UVs (for exports made later).
+- ``performance.json``: rate, units, frame count, source files, parameters,
+  and every file written with its size.
+- optional exports: ``obj/frame_000000.obj ...``, ``ply/...``, ``performance.usdc``
+  (time-sampled points, streamed with the frames) and, made from the finished
+  frames through :func:`facecap.io.read_result`, ``performance_rig.usdc``
+  (UsdSkel blend shapes), ``performance.glb``, ``.mdd``, ``.pc2``, ``.abc``
+  (:func:`facecap.io.export_result`).
 - whatever else the caller adds (``report.json``, pictures).
 
 Everything is written into a hidden staging folder beside the destination and
@@ -31,10 +40,13 @@ from ..structures import Mesh
 from ..units import mm_per_unit
 from ._atomic import atomic_folder
 
-__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "read_performance_info"]
+__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "read_performance_info"]
 
-EXPORT_FORMATS = ("obj", "ply", "usd")
-"""Per-frame exports ``--export`` accepts besides the always-written ``vertices.npy``."""
+EXPORT_FORMATS = ("usd", "gltf", "mdd", "pc2", "abc", "obj", "ply")
+"""Exports ``--export`` accepts besides ``vertices.npy`` and the rig."""
+
+STREAMED_FORMATS = ("usd", "obj", "ply")
+"""Exports written while the frames are computed (the others are made from the finished folder)."""
 
 _MARKER_FILE = "performance.json"
 
@@ -79,8 +91,16 @@ class PerformanceWriter:
         Frame rate in Hz.
     n_frames : int
         Number of frames that will be written.
-    exports : iterable of {'obj', 'ply', 'usd'}, optional
-        Per-frame exports besides ``vertices.npy``.
+    exports : iterable of str, optional
+        Exports (:data:`EXPORT_FORMATS`). ``usd``, ``obj`` and ``ply`` are
+        streamed with the frames (``usd`` also gets ``performance_rig.usdc``
+        when a rig is written); the others are made from the finished frames
+        before the folder is moved into place.
+    vertices : bool, default True
+        Write ``vertices.npy``. Without it the result needs a rig
+        (:meth:`write_rig`), and frames are computed only for streamed exports.
+    export_options : dict, optional
+        Passed to :func:`facecap.io.export_result` (e.g. ``gltf_targets``).
 
     Examples
     --------
@@ -100,6 +120,8 @@ class PerformanceWriter:
         rate: float,
         n_frames: int,
         exports: Iterable[str] = (),
+        vertices: bool = True,
+        export_options: dict[str, Any] | None = None,
     ) -> None:
         self.out_dir = Path(out_dir)
         self.mesh = mesh
@@ -112,9 +134,13 @@ class PerformanceWriter:
         self._folder = atomic_folder(self.out_dir, marker_file=_MARKER_FILE)
         self.staging = self._folder.__enter__()
         self._unit_scale = np.float32(1.0 / mm_per_unit(mesh.source_unit))
-        self._npy = _NpyStream(self.staging / "vertices.npy", (self.n_frames, mesh.n_vertices, 3), np.dtype("<f4"))
+        self._npy = (_NpyStream(self.staging / "vertices.npy", (self.n_frames, mesh.n_vertices, 3), np.dtype("<f4"))
+                     if vertices else None)
+        self.export_options = dict(export_options or {})
+        self._rig = None
+        self._frames_written = 0
         self._usd = None
-        if "usd" in self.exports:
+        if "usd" in self.exports and vertices:
             from .write_usd import UsdPerformanceWriter
 
             self._usd = UsdPerformanceWriter(self.staging / "performance.usdc", mesh, self.rate, self.n_frames)
@@ -133,7 +159,46 @@ class PerformanceWriter:
     @property
     def frames_written(self) -> int:
         """Frames written so far."""
-        return self._npy.frames_written
+        return self._frames_written
+
+    @property
+    def needs_frames(self) -> bool:
+        """Whether anything is written frame by frame (``vertices.npy`` or a streamed export)."""
+        return self._npy is not None or self._usd is not None or "obj" in self.exports or "ply" in self.exports
+
+    def write_rig(self, rig: Any, *, precision: str = "float32") -> None:
+        """Write the result's exact compact form into ``rig/`` (see :mod:`facecap.io.result_rig`).
+
+        Parameters
+        ----------
+        rig : ResultRig
+            In the scan's source unit, like ``vertices.npy``.
+        precision : {'float32', 'int16'}, default 'float32'
+            Storage of the basis; int16 halves it within the bound ``rig.json`` states.
+        """
+        from .result_rig import RIG_PRECISIONS, write_rig
+
+        if precision not in RIG_PRECISIONS:
+            raise InputError(f"rig precision: expected one of {list(RIG_PRECISIONS)}, got {precision!r}")
+        if (rig.n_frames, rig.n_vertices) != (self.n_frames, self.mesh.n_vertices):
+            raise InputError(f"rig: {rig.n_frames} frames x {rig.n_vertices} vertices, the result has "
+                             f"{self.n_frames} x {self.mesh.n_vertices}")
+        self._rig = rig.quantized() if precision == "int16" else rig
+        write_rig(self.staging / "rig", self._rig)
+
+    def stream_rig(self, *, batch_frames: int = 64, head_pose: np.ndarray | None = None,
+                   progress: bool = False, desc: str = "frames") -> None:
+        """Write every frame from the rig given to :meth:`write_rig` (for ``vertices.npy`` and streamed exports)."""
+        if self._rig is None:
+            raise InputError("stream_rig: write_rig first")
+        rig, to_mm = self._rig, np.float32(1.0 / self._unit_scale)
+
+        def compute(start: int, stop: int, out: np.ndarray) -> None:
+            rig.frames_into(start, stop, out)
+            if to_mm != 1:  # write_frames takes mm; in mm (the usual unit) the rig's frames go out bit for bit
+                out *= to_mm
+
+        self.stream(compute, batch_frames=batch_frames, head_pose=head_pose, progress=progress, desc=desc)
 
     def write_frames(self, start: int, vertices_mm: np.ndarray, *, head_pose: np.ndarray | None = None) -> None:
         """Append a block of consecutive frames.
@@ -153,7 +218,8 @@ class PerformanceWriter:
         if start + block_mm.shape[0] > self.n_frames:
             raise InputError(f"more frames than announced ({self.n_frames})")
         block = block_mm * self._unit_scale if self._unit_scale != 1 else block_mm
-        self._npy.write(block)
+        if self._npy is not None:
+            self._npy.write(block)
         if self._usd is not None:  # the USD writer takes mm and converts itself
             self._usd.write_frames(start, block_mm, head_pose=head_pose)
         if "obj" in self.exports or "ply" in self.exports:
@@ -164,6 +230,7 @@ class PerformanceWriter:
                     if fmt in self.exports:
                         frame_path = self.staging / fmt / f"frame_{start + k:06d}.{fmt}"
                         write_mesh(self.mesh, frame_path, vertices=block_mm[k])
+        self._frames_written += block_mm.shape[0]
 
     def stream(
         self,
@@ -217,7 +284,12 @@ class PerformanceWriter:
         return self.staging / name
 
     def finish(self, metadata: dict[str, Any]) -> Path:
-        """Write ``faces.npy`` and ``performance.json`` and move the folder into place.
+        """Write the metadata and the exports made from the frames, and move the folder into place.
+
+        Writes ``faces.npy``, ``mesh.npz`` and ``performance.json``, then the
+        exports that read the finished frames (glTF, point caches, Alembic, USD
+        blend shapes: :func:`facecap.io.export_result`), then lists every file
+        with its size in ``performance.json``.
 
         Parameters
         ----------
@@ -230,12 +302,16 @@ class PerformanceWriter:
         Path
             The finished output folder.
         """
-        if self.frames_written != self.n_frames:
+        if self.needs_frames and self.frames_written != self.n_frames:
             raise InputError(f"only {self.frames_written} of {self.n_frames} frames were written")
-        self._npy.close()
+        if self._npy is None and self._rig is None:
+            raise InputError("the result has neither vertices.npy nor a rig")
+        if self._npy is not None:
+            self._npy.close()
         if self._usd is not None:
             self._usd.close()
         np.save(self.staging / "faces.npy", self.mesh.faces)
+        _write_mesh_npz(self.staging / "mesh.npz", self.mesh)
         info = {
             "format": "facecap-performance",
             "version": 1,
@@ -244,9 +320,21 @@ class PerformanceWriter:
             "n_frames": self.n_frames,
             "n_vertices": self.mesh.n_vertices,
             "exports": list(self.exports),
+            "frames_in": (["vertices.npy"] if self._npy is not None else []) + (["rig/"] if self._rig is not None else []),
             **metadata,
         }
-        (self.staging / _MARKER_FILE).write_text(json.dumps(info, indent=2, default=_json_default))
+        info_path = self.staging / _MARKER_FILE
+        info_path.write_text(json.dumps(info, indent=2, default=_json_default))
+        later = [f for f in self.exports if f not in STREAMED_FORMATS or (f == "usd" and self._rig is not None)]
+        if later:
+            from .export_result import export_result
+
+            export_result(self.staging, later, progress=self.export_options.pop("progress", False),
+                          skip_streamed=True, **self.export_options)
+            info = json.loads(info_path.read_text())
+        info["files"] = {str(p.relative_to(self.staging)): p.stat().st_size
+                         for p in sorted(self.staging.rglob("*")) if p.is_file() and p.name != _MARKER_FILE}
+        info_path.write_text(json.dumps(info, indent=2, default=_json_default))
         self._folder.__exit__(None, None, None)
         self._finished = True
         return self.out_dir
@@ -254,7 +342,8 @@ class PerformanceWriter:
     def abort(self) -> None:
         """Discard everything written so far."""
         try:
-            self._npy.close()
+            if self._npy is not None:
+                self._npy.close()
         except Exception:
             pass
         if self._usd is not None:
@@ -275,6 +364,16 @@ def read_performance_info(out_dir: str | os.PathLike[str]) -> dict[str, Any]:
         return json.loads(path.read_text())
     except json.JSONDecodeError as exc:
         raise InputError(f"unreadable performance.json ({exc})", path=str(path)) from None
+
+
+def _write_mesh_npz(path: str | os.PathLike[str], mesh: Mesh) -> None:
+    """The scan a result was made on, as ``mesh.npz``: rest vertices in its source unit, topology, UVs."""
+    arrays: dict[str, np.ndarray] = {"rest": mesh.to_source_unit(mesh.vertices).astype(np.float32), "faces": mesh.faces}
+    for name in ("polygon_sizes", "polygon_indices", "uvs", "uv_indices"):
+        value = getattr(mesh, name)
+        if value is not None:
+            arrays[name] = np.asarray(value)
+    np.savez(path, **arrays)
 
 
 def _json_default(obj: Any) -> Any:

@@ -103,19 +103,26 @@ def _describe_mesh(path: Path, unit: str) -> dict[str, Any]:
 
 
 def _describe_result(folder: Path) -> dict[str, Any]:
-    from ..io.write_performance import read_performance_info
+    from ..io.read_result import read_result
 
-    info = read_performance_info(folder)
-    V = np.load(folder / "vertices.npy", mmap_mode="r")
-    return {
+    result = read_result(folder)
+    info = result.info
+    described = {
         "kind": "facecap result",
         "folder": str(folder),
-        "frames": int(V.shape[0]),
-        "vertices": int(V.shape[1]),
-        "rate_hz": info.get("rate"),
-        "units": info.get("units"),
+        "frames": result.n_frames,
+        "vertices": result.n_vertices,
+        "rate_hz": result.rate,
+        "units": result.units,
         "method": info.get("method"),
         "stabilized": info.get("stabilized"),
+        "frames_in": ("vertices.npy" if result.has_vertices else "")
+        + (" and " if result.has_vertices and result.rig is not None else "")
+        + (f"rig/ ({result.rig.kind}, {result.rig.n_basis} x {result.rig.n_vertices}, {result.rig.precision}"
+           + (f", error bound {result.rig.error_bound:.3g} {result.units})" if result.rig.precision == "int16" else ")")
+           if result.rig is not None else ""),
         "exports": info.get("exports"),
+        "size_mb": round(sum(result.files().values()) / 1e6, 2),
         "source_files": info.get("source_files"),
     }
+    return described

@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..io.write_performance import read_performance_info
+from ..io.read_result import read_result
 from ..units import mm_per_unit
 from .evaluate_performance import DenseError, evaluate_performance
 
@@ -76,20 +76,21 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: st
     if frame not in ("auto", "world", "stabilized"):
         raise InputError(f"frame: expected 'auto', 'world' or 'stabilized', got {frame!r}")
     truth = read_truth(truth_path)
-    info = read_performance_info(result_dir)
+    opened = read_result(result_dir)
+    info = opened.info
     motion_path = Path(result_dir) / "head_motion.npy"
     stabilized = bool(info.get("stabilized", False))
     if frame == "world" and not (stabilized and motion_path.is_file()):
         raise InputError("frame='world' needs a stabilised result with head_motion.npy", path=str(result_dir))
     world = stabilized and motion_path.is_file() and frame != "stabilized"
-    result = np.load(Path(result_dir) / "vertices.npy", mmap_mode="r")
     T_truth = truth["vertices"]
-    if result.shape != T_truth.shape:
+    if (opened.n_frames, opened.n_vertices, 3) != T_truth.shape:
         raise InputError(
-            f"result has {result.shape[0]} frames x {result.shape[1]} vertices, "
+            f"result has {opened.n_frames} frames x {opened.n_vertices} vertices, "
             f"truth has {T_truth.shape[0]} x {T_truth.shape[1]}",
             path=str(result_dir),
         )
+    result = opened.frames()
     truth_unit = str(truth["units"]) if "units" in truth else "mm"
     truth_mm = T_truth.astype(np.float32) * np.float32(mm_per_unit(truth_unit))
     rest = int(info.get("rest_frame", 0))

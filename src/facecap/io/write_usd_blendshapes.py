@@ -1,0 +1,196 @@
+"""A result's rig as UsdSkel blend shapes with animated weights (``performance_rig.usdc``).
+
+Layout of the stage::
+
+    /Head              SkelRoot, defaultPrim; time-sampled ``xformOp:transform``
+                       with the head motion of a stabilised result
+    /Head/Skeleton     Skeleton (no joints: the rig is blend shapes only),
+                       ``skel:animationSource`` -> /Head/Animation
+    /Head/Animation    SkelAnimation: ``blendShapes`` and time-sampled ``blendShapeWeights``
+    /Head/Face         Mesh: the rest points, the scan's polygons and UVs,
+                       ``skel:blendShapes`` / ``skel:blendShapeTargets``
+    /Head/Face/s0000.. BlendShape: ``offsets`` and ``pointIndices``
+
+Frame k is time code k at the take's rate, as in ``performance.usdc``; points
+are in the result's unit with ``metersPerUnit`` set to match.
+
+The thin shell's rig has one scalar weight per marker and vertex, so it
+becomes three shapes per marker (that marker moved along x, y and z; see
+:meth:`facecap.io.ResultRig.shapes`). A shape's ``pointIndices`` keep only
+the vertices it moves by more than its share of ``tolerance`` over the whole
+take: the shell's weights decay away from their marker, and the far vertices'
+contributions are below float32's resolution of the coordinates. The dropped
+contributions add up to at most ``tolerance`` at any vertex and frame (the
+bound is written into the layer's documentation and returned).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from ..errors import InputError
+from ..structures import Mesh
+from ..units import mm_per_unit
+from ._atomic import atomic_path
+from .result_rig import ResultRig
+
+__all__ = ["write_usd_blendshapes", "DEFAULT_BLENDSHAPE_TOLERANCE_MM"]
+
+DEFAULT_BLENDSHAPE_TOLERANCE_MM = 1e-4
+"""Largest vertex error the dropped far-field shape entries may add up to, mm."""
+
+_ROOT, _SKELETON, _ANIMATION, _FACE = "/Head", "/Head/Skeleton", "/Head/Animation", "/Head/Face"
+
+
+def write_usd_blendshapes(
+    path: str | os.PathLike[str],
+    mesh: Mesh,
+    rig: ResultRig,
+    *,
+    rate: float,
+    head_motion: np.ndarray | None = None,
+    tolerance_mm: float = DEFAULT_BLENDSHAPE_TOLERANCE_MM,
+    progress: bool = False,
+) -> dict[str, Any]:
+    """Write ``rig`` as UsdSkel blend shapes with their weights animated at ``rate``.
+
+    Parameters
+    ----------
+    path : str or path-like
+        A ``.usdc`` (or ``.usda``) file; written under a temporary name and renamed.
+    mesh : Mesh
+        The scan: polygons and UVs (its vertices are not used: the rig's rest is).
+    rig : ResultRig
+        In the result's unit (``rig.units``).
+    rate : float
+        Frame rate, Hz: ``timeCodesPerSecond`` and ``framesPerSecond``.
+    head_motion : (T, 4, 4) array, optional
+        Head motion per frame (translation in the rig's unit) on ``/Head``.
+    tolerance_mm : float, default 1e-4
+        Bound on what the dropped far-field entries may add up to (see the module docstring); 0 keeps every entry.
+    progress : bool, default False
+
+    Returns
+    -------
+    dict
+        ``n_shapes``, ``stored_entries`` (shape x vertex entries written),
+        ``dense_entries`` (what full shapes would hold), ``error_bound_mm``,
+        ``bytes``.
+
+    Raises
+    ------
+    InputError
+        If the mesh and the rig disagree, ``head_motion`` is not (T, 4, 4), or the file cannot be written.
+    """
+    from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
+
+    path = Path(path)
+    if path.suffix.lower() not in (".usdc", ".usda", ".usd"):
+        raise InputError(f"expected a .usdc, .usda or .usd file name, got {path.name!r}", path=str(path))
+    if mesh.n_vertices != rig.n_vertices:
+        raise InputError(f"the mesh has {mesh.n_vertices} vertices, the rig {rig.n_vertices}", path=str(path))
+    if not np.isfinite(rate) or rate <= 0:
+        raise InputError(f"rate: expected a positive frame rate in Hz, got {rate!r}")
+    if head_motion is not None:
+        head_motion = np.asarray(head_motion, np.float64)
+        if head_motion.shape != (rig.n_frames, 4, 4) or not np.isfinite(head_motion).all():
+            raise InputError(f"head_motion: expected finite ({rig.n_frames}, 4, 4), got {head_motion.shape}")
+    tolerance = float(tolerance_mm) / mm_per_unit(rig.units)
+
+    shapes, names = rig.shapes()
+    weights = rig.shape_weights()
+    m, T = shapes.shape[0], rig.n_frames
+    peak_weight = np.abs(weights).max(axis=0)  # (m,)
+    share = tolerance / m if tolerance > 0 else 0.0
+    tokens = [_token(name, k) for k, name in enumerate(names)]
+
+    layer = Sdf.Layer.CreateAnonymous(path.name)
+    stage = Usd.Stage.Open(layer)
+    root = UsdSkel.Root.Define(stage, _ROOT)
+    stage.SetDefaultPrim(root.GetPrim())
+    UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
+    UsdGeom.SetStageMetersPerUnit(stage, mm_per_unit(rig.units) / 1000.0)
+    stage.SetStartTimeCode(0.0)
+    stage.SetEndTimeCode(float(T - 1))
+    stage.SetTimeCodesPerSecond(float(rate))
+    stage.SetFramesPerSecond(float(rate))
+
+    skeleton = UsdSkel.Skeleton.Define(stage, _SKELETON)
+    skeleton.CreateJointsAttr(Vt.TokenArray([]))
+    animation = UsdSkel.Animation.Define(stage, _ANIMATION)
+    animation.CreateJointsAttr(Vt.TokenArray([]))
+    animation.CreateBlendShapesAttr(Vt.TokenArray(tokens))
+    UsdSkel.BindingAPI.Apply(skeleton.GetPrim()).CreateAnimationSourceRel().SetTargets([animation.GetPath()])
+
+    face = UsdGeom.Mesh.Define(stage, _FACE)
+    sizes, indices = mesh.export_polygons()
+    face.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(sizes, np.int32)))
+    face.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(indices, np.int32)))
+    face.CreateSubdivisionSchemeAttr("none")
+    rest = np.ascontiguousarray(rig.rest, np.float32)
+    face.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(rest))
+    face.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, rest.min(0))), Gf.Vec3f(*map(float, rest.max(0)))]))
+    if mesh.uvs is not None:
+        face_varying = mesh.uv_indices is not None
+        st = UsdGeom.PrimvarsAPI(face).CreatePrimvar(
+            "st", Sdf.ValueTypeNames.TexCoord2fArray,
+            UsdGeom.Tokens.faceVarying if face_varying else UsdGeom.Tokens.vertex)
+        st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(mesh.uvs, np.float32)))
+        if face_varying:
+            st.SetIndices(Vt.IntArray.FromNumpy(np.ascontiguousarray(mesh.uv_indices, np.int32)))
+    binding = UsdSkel.BindingAPI.Apply(face.GetPrim())
+    binding.CreateSkeletonRel().SetTargets([skeleton.GetPath()])
+    binding.CreateBlendShapesAttr(Vt.TokenArray(tokens))
+
+    stored = 0
+    targets = []
+    for k in tqdm(range(m), desc="USD blend shapes", unit="shape", disable=not progress, leave=False):
+        offsets = shapes[k]
+        reach = np.abs(offsets).max(axis=1) * peak_weight[k]
+        keep = np.flatnonzero(reach > share) if share > 0 else np.arange(rig.n_vertices)
+        shape = UsdSkel.BlendShape.Define(stage, f"{_FACE}/{tokens[k]}")
+        shape.CreateOffsetsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(offsets[keep], np.float32)))
+        shape.CreatePointIndicesAttr(Vt.IntArray.FromNumpy(keep.astype(np.int32)))
+        targets.append(shape.GetPath())
+        stored += keep.size
+    binding.CreateBlendShapeTargetsRel().SetTargets(targets)
+
+    weights_attr = animation.CreateBlendShapeWeightsAttr()
+    spec_path = weights_attr.GetPath()
+    transform_path = None
+    if head_motion is not None:
+        root_xform = UsdGeom.Xformable(root.GetPrim())
+        transform_path = root_xform.AddTransformOp().GetAttr().GetPath()
+    with Sdf.ChangeBlock():
+        for t in range(T):
+            layer.SetTimeSample(spec_path, float(t), Vt.FloatArray.FromNumpy(np.ascontiguousarray(weights[t], np.float32)))
+            if transform_path is not None:
+                layer.SetTimeSample(transform_path, float(t), Gf.Matrix4d(head_motion[t].T.tolist()))
+    bound = share * m if share > 0 else 0.0
+    layer.documentation = (
+        f"facecap rig as UsdSkel blend shapes: {m} shapes, {rig.n_vertices} vertices, {T} frames at {rate:g} Hz, "
+        f"unit {rig.units}; far-field entries dropped add up to at most {bound * mm_per_unit(rig.units):.3g} mm"
+    )
+    del stage
+    with atomic_path(path) as tmp:
+        if not layer.Export(str(tmp)):
+            raise InputError("could not write the USD file", path=str(path))
+    return {
+        "n_shapes": m,
+        "stored_entries": int(stored),
+        "dense_entries": int(m * rig.n_vertices),
+        "error_bound_mm": float(bound * mm_per_unit(rig.units)),
+        "bytes": path.stat().st_size,
+    }
+
+
+def _token(name: str, index: int) -> str:
+    """A valid USD prim name (and blend shape token) from a basis name, unique by its index."""
+    clean = re.sub(r"[^A-Za-z0-9_]", "_", name)
+    return f"s{index:04d}_{clean}"[:64]
