@@ -18,6 +18,9 @@ In the order a user meets them:
   (PARDISO, or SciPy's SuperLU where MKL is missing).
 - :func:`rbf_deformation_basis` (``rbf_deform.py``): the warp alone, the
   baseline the shell must beat.
+- :func:`principal_targets_from_rig`, :func:`principal_targets`
+  (``principal_targets.py``): a take as a few principal morph targets and
+  their weights (for glTF review files), as :class:`PrincipalTargets`.
 
 The functions share their modules' names, so ``facecap.deform.animate_scan``
 is the function; reach a module itself with
@@ -30,6 +33,7 @@ from .animate_scan import AnimationResult, PreparedMarkers, animate_scan, prepar
 from .basis_product import BasisProduct, Precision
 from .factor_spd import SpdFactor, available_backends
 from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, DEFAULT_OFFSET_ITERATIONS, MarkerOffsets
+from .principal_targets import PrincipalTargets, principal_targets, principal_targets_from_rig
 from .rbf_deform import rbf_deformation_basis
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, PieceReport, ThinShellSolver, thin_shell_deform
 from .triharmonic_warp import TriharmonicWarp
@@ -53,4 +57,7 @@ __all__ = [
     "SpdFactor",
     "available_backends",
     "rbf_deformation_basis",
+    "principal_targets_from_rig",
+    "principal_targets",
+    "PrincipalTargets",
 ]

@@ -17,6 +17,8 @@ In the order a user meets them:
   MDD and PC2 point caches (Blender's Mesh Cache modifier, 3ds Max's Point
   Cache); :func:`write_alembic` (``write_alembic.py``): a streamed Alembic
   archive (the optional alembic3d is imported only when one is written).
+- :func:`write_gltf` (``write_gltf.py``): a ``.glb`` review file, the mesh in
+  metres with morph targets, their weights animation and marker nodes.
 - :class:`ResultRig` (``result_rig.py``): the exact compact form of a result
   linear in per-frame coefficients (``rig/``), :func:`write_rig` / :func:`read_rig`;
   :func:`read_result` (``read_result.py``) opens any finished result folder and
@@ -49,12 +51,17 @@ from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, PerformanceWrit
 from .write_usd import UsdPerformanceWriter
 from .write_point_cache import write_mdd, write_pc2
 from .write_alembic import write_alembic
+from .write_gltf import MAX_MORPH_TARGETS, MORPH_GPU_BUDGET_BYTES, MORPH_GPU_BYTES_PER_VERTEX_TARGET, write_gltf
 from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, read_rig, write_rig
 from .read_result import MESH_FILE, Result, read_result
 from .write_usd_blendshapes import DEFAULT_BLENDSHAPE_TOLERANCE_MM, write_usd_blendshapes
 from .export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES, export_result, parse_export_formats
 
 __all__ = [
+    "write_gltf",
+    "MAX_MORPH_TARGETS",
+    "MORPH_GPU_BUDGET_BYTES",
+    "MORPH_GPU_BYTES_PER_VERTEX_TARGET",
     "read_mesh",
     "write_mesh",
     "read_markers",

@@ -11,6 +11,8 @@ In the order a user meets them:
   Voronoi mass (Meyer et al. 2003), as :class:`LaplaceOperators`.
 - :func:`mean_curvature` (``mean_curvature.py``): per-vertex mean curvature
   from local quadric fits.
+- :func:`review_mesh` (``review_mesh.py``): a decimated mesh made of a subset of
+  the scan's own vertices, for review files, as a :class:`ReviewMesh`.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from .check_mesh import MeshCheck, check_mesh
 from .connected_pieces import connected_pieces
 from .laplacian import LaplaceOperators, laplace_operators
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
+from .review_mesh import ReviewMesh, review_mesh
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
 
 __all__ = [
@@ -31,4 +34,6 @@ __all__ = [
     "LaplaceOperators",
     "mean_curvature",
     "DEFAULT_FEATURE_THRESHOLD",
+    "review_mesh",
+    "ReviewMesh",
 ]
