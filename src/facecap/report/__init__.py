@@ -11,6 +11,10 @@ In the order a user meets them:
 - :func:`render_mesh`, :func:`render_side_by_side` (``render_mesh.py``):
   headless pictures of a mesh, as :class:`MeshPanel` panels.
 - :func:`plot_series` (``plot_series.py``): per-frame quantities against time.
+- :func:`write_review_page`, :func:`serve`, :class:`ReviewServer` (``review_page.py``):
+  the result's GLB played in the browser (three.js, offline), and the localhost server
+  of ``facecap view``.
+- :func:`write_html_report` (``html_report.py``): one self-contained HTML report per run.
 
 Imported eagerly (matplotlib is a main dependency): a lazy ``__getattr__`` would
 hand out the *module* ``render_mesh`` instead of the function of the same name
@@ -22,8 +26,10 @@ from __future__ import annotations
 from .describe import describe_file
 from .evaluate_performance import DenseError, RegionError, evaluate_performance
 from .evaluate_result import evaluate_result, read_truth
+from .html_report import write_html_report
 from .plot_series import plot_series
 from .render_mesh import MeshPanel, render_mesh, render_side_by_side
+from .review_page import EMBED_LIMIT_BYTES, ReviewServer, serve, write_review_page
 
 __all__ = [
     "describe_file",
@@ -36,4 +42,9 @@ __all__ = [
     "render_side_by_side",
     "MeshPanel",
     "plot_series",
+    "write_review_page",
+    "serve",
+    "ReviewServer",
+    "EMBED_LIMIT_BYTES",
+    "write_html_report",
 ]
