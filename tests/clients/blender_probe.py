@@ -78,6 +78,7 @@ def _describe(ob) -> dict:
     return {
         "name": ob.name,
         "parent": ob.parent.name if ob.parent else None,
+        "scale": list(ob.matrix_world.to_scale()),
         "modifiers": [m.type for m in ob.modifiers],
         "constraints": [c.type for c in ob.constraints],
         "shape_keys": [

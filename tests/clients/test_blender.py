@@ -23,6 +23,7 @@ every Blender vertex to one of ours and cover all of ours.
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -30,7 +31,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from facecap.io import UsdPerformanceWriter, write_mesh
+from facecap.io.result_rig import ResultRig
 from facecap.io.write_gltf import write_gltf
+from facecap.io.write_usd_blendshapes import write_usd_blendshapes
 from facecap.structures import Mesh
 
 from blender_env import BlenderEnvironmentError, blender_python, run_blender_script
@@ -42,8 +45,9 @@ CHECK_FRAMES = (0, N_FRAMES // 2, N_FRAMES - 1)
 TOLERANCE_MM = 1e-3
 GRID = 16
 SPACING_MM = 8.0
-GLTF_SLIDER_RANGE = (-10.0, 10.0)
-"""Shape-key range set after a glTF import (docs/clients.md): the importer's own clamps the weights."""
+SHAPE_KEY_RANGE = (-10.0, 10.0)
+"""Shape-key slider range set after a glTF or USD blend-shape import (docs/clients.md): Blender clamps
+a shape key's value to its range, and the importers leave [0, 1] (glTF: widened by the first key only)."""
 
 
 # ----------------------------------------------------------------- the take
@@ -147,6 +151,12 @@ def _write_inputs(take: Take, d: Path) -> tuple[list[dict], dict[str, np.ndarray
     jobs.append(_job("usd_clips", "usd", d / "clips.usdc", out, options={}))
     truth["usd_clips"] = take.frames
 
+    # USD of a scan read in centimetres: points in cm, metersPerUnit 0.01 (the importer scales by it).
+    with UsdPerformanceWriter(d / "take_cm.usdc", replace(take.mesh, source_unit="cm"), RATE, N_FRAMES) as writer:
+        writer.write_frames(0, take.frames)
+    jobs.append(_job("usd_cm", "usd", d / "take_cm.usdc", out, options={}))
+    truth["usd_cm"] = take.frames
+
     # OBJ: one frame of the sequence (mm file, so global_scale 0.001 to metres).
     middle = CHECK_FRAMES[1]
     write_mesh(take.mesh, d / "frame.obj", vertices=take.frames[middle])
@@ -157,11 +167,18 @@ def _write_inputs(take: Take, d: Path) -> tuple[list[dict], dict[str, np.ndarray
     # glTF: the rest mesh, the three fields as morph targets, their weights animated (metres in the file).
     info = write_gltf(d / "take.glb", take.mesh, targets=take.targets, weights=take.weights, rate=RATE)
     assert info["n_vertices"] > take.mesh.n_vertices  # split along the UV seam
-    jobs.append(_job("gltf", "gltf", d / "take.glb", out, options={}, shape_key_range=list(GLTF_SLIDER_RANGE)))
+    jobs.append(_job("gltf", "gltf", d / "take.glb", out, options={}, shape_key_range=list(SHAPE_KEY_RANGE)))
     truth["gltf"] = take.frames
     # The same file imported as it comes, for the importer's slider ranges (test_gltf_importer_slider_ranges).
     jobs.append(_job("gltf_as_imported", "gltf", d / "take.glb", out, options={}))
     truth["gltf_as_imported"] = take.frames
+
+    # USD blend shapes (UsdSkel): the three fields as shapes, their weights animated, the head motion on /Head.
+    rig = ResultRig(rest=take.mesh.vertices, basis=take.targets, coefficients=take.weights)
+    write_usd_blendshapes(d / "rig.usdc", take.mesh, rig, rate=RATE, head_motion=take.head_pose)
+    jobs.append(_job("usd_blendshapes", "usd", d / "rig.usdc", out, options={},
+                     shape_key_range=list(SHAPE_KEY_RANGE)))
+    truth["usd_blendshapes"] = take.world_frames()
     return jobs, truth
 
 
@@ -294,6 +311,12 @@ def test_usd_value_clips(imported: dict) -> None:
     assert (r["info"]["scene_frame_start"], r["info"]["scene_frame_end"]) == (0, N_FRAMES - 1)
 
 
+def test_usd_in_centimetres(imported: dict) -> None:
+    r = _result(imported, "usd_cm")
+    _check_positions(r, keeps_order=True)
+    assert r["info"]["object"]["scale"] == pytest.approx([0.01] * 3)  # metersPerUnit, as the object's scale
+
+
 def test_obj_frame(imported: dict) -> None:
     r = _result(imported, "obj")
     _check_polygons(r, _check_positions(r, keeps_order=True))
@@ -320,7 +343,7 @@ def test_gltf_importer_slider_ranges(imported: dict) -> None:
     ``io_scene_gltf2/blender/imp/animation_weight.py`` takes ``min(coords[1:2])``
     (the first value) where it means every value, so weights outside [0, 1]
     later in the take are clamped unless the artist widens the ranges, which
-    the ``gltf`` job does (``GLTF_SLIDER_RANGE``) as docs/clients.md says.
+    the ``gltf`` job does (``SHAPE_KEY_RANGE``) as docs/clients.md says.
     This pins that behaviour: if a Blender upgrade fixes it, update the docs.
     """
     r = _result(imported, "gltf_as_imported")
@@ -331,3 +354,14 @@ def test_gltf_importer_slider_ranges(imported: dict) -> None:
     assert ((r["take"].weights[last] < 0.0) | (r["take"].weights[last] > 1.0)).any()
     errors = frame_errors_mm(r, _map_at_first_frame(r))
     assert errors[last] > 0.1, errors  # clamped: the last frame's weights lie outside the imported ranges
+
+
+def test_usd_blendshapes_with_head_motion(imported: dict) -> None:
+    r = _result(imported, "usd_blendshapes")
+    _check_polygons(r, _check_positions(r, keeps_order=True))
+    info = r["info"]
+    assert len(info["object"]["shape_keys"]) == 1 + len(r["take"].targets)
+    assert info["object"]["shape_keys_animated"]
+    assert (info["scene_frame_start"], info["scene_frame_end"]) == (0, N_FRAMES - 1)
+    # As imported, every shape key's range is [0, 1]: the take's weights outside it would be clamped.
+    assert [(k["slider_min"], k["slider_max"]) for k in info["imported_shape_keys"][1:]] == [(0.0, 1.0)] * 3
