@@ -32,7 +32,9 @@ from scipy.spatial import cKDTree
 
 from facecap.io import UsdPerformanceWriter, write_mesh
 from facecap.io.result_rig import ResultRig
+from facecap.io.write_alembic import write_alembic
 from facecap.io.write_gltf import write_gltf
+from facecap.io.write_point_cache import write_mdd, write_pc2
 from facecap.io.write_usd_blendshapes import write_usd_blendshapes
 from facecap.structures import Mesh
 
@@ -48,6 +50,13 @@ SPACING_MM = 8.0
 SHAPE_KEY_RANGE = (-10.0, 10.0)
 """Shape-key slider range set after a glTF or USD blend-shape import (docs/clients.md): Blender clamps
 a shape key's value to its range, and the importers leave [0, 1] (glTF: widened by the first key only)."""
+MESH_CACHE_SETTINGS = {
+    "time_mode": "FRAME", "play_mode": "SCENE", "frame_start": 0.0, "frame_scale": 1.0,
+    "forward_axis": "POS_Y", "up_axis": "POS_Z", "flip_axis": [False, False, False], "deform_mode": "OVERWRITE",
+    "interpolation": "LINEAR",
+}
+"""The Mesh Cache modifier's settings (docs/clients.md): Blender's defaults, spelled out. Frame mode plays
+sample ``scene frame - frame_start``; the axes leave the file's coordinates as they are (object space)."""
 
 
 # ----------------------------------------------------------------- the take
@@ -173,6 +182,22 @@ def _write_inputs(take: Take, d: Path) -> tuple[list[dict], dict[str, np.ndarray
     jobs.append(_job("gltf_as_imported", "gltf", d / "take.glb", out, options={}))
     truth["gltf_as_imported"] = take.frames
 
+    # MDD and PC2: the rest mesh as OBJ (vertex order kept) and a Mesh Cache modifier playing the file,
+    # whose frames are in the OBJ's unit and axes (mm, Y up): the OBJ import's object transform places both.
+    write_mesh(take.mesh, d / "rest.obj")
+    for cache_format, writer in (("MDD", write_mdd), ("PC2", write_pc2)):
+        cache = d / f"take.{cache_format.lower()}"
+        writer(cache, _blocks(take.frames), n_frames=N_FRAMES, n_vertices=take.mesh.n_vertices, rate=RATE)
+        name = cache_format.lower()
+        jobs.append(_job(name, "obj", d / "rest.obj", out, options={"global_scale": 0.001},
+                         mesh_cache={"filepath": str(cache), "cache_format": cache_format, **MESH_CACHE_SETTINGS}))
+        truth[name] = take.frames
+
+    # Alembic: metres in the file (unit_scale 0.001 from mm), Y up like the others.
+    write_alembic(d / "take.abc", take.mesh, _blocks(take.frames), n_frames=N_FRAMES, rate=RATE, unit_scale=0.001)
+    jobs.append(_job("alembic", "alembic", d / "take.abc", out, options={}))
+    truth["alembic"] = take.frames
+
     # USD blend shapes (UsdSkel): the three fields as shapes, their weights animated, the head motion on /Head.
     rig = ResultRig(rest=take.mesh.vertices, basis=take.targets, coefficients=take.weights)
     write_usd_blendshapes(d / "rig.usdc", take.mesh, rig, rate=RATE, head_motion=take.head_pose)
@@ -180,6 +205,11 @@ def _write_inputs(take: Take, d: Path) -> tuple[list[dict], dict[str, np.ndarray
                      shape_key_range=list(SHAPE_KEY_RANGE)))
     truth["usd_blendshapes"] = take.world_frames()
     return jobs, truth
+
+
+def _blocks(frames: np.ndarray, size: int = 8):
+    """The take as the point-cache writers' ``(start, float32 block)`` stream."""
+    return ((start, frames[start:start + size].astype(np.float32)) for start in range(0, len(frames), size))
 
 
 @pytest.fixture(scope="session")
@@ -354,6 +384,22 @@ def test_gltf_importer_slider_ranges(imported: dict) -> None:
     assert ((r["take"].weights[last] < 0.0) | (r["take"].weights[last] > 1.0)).any()
     errors = frame_errors_mm(r, _map_at_first_frame(r))
     assert errors[last] > 0.1, errors  # clamped: the last frame's weights lie outside the imported ranges
+
+
+@pytest.mark.parametrize("name", ["mdd", "pc2"])
+def test_point_cache_on_the_obj_rest_mesh(imported: dict, name: str) -> None:
+    r = _result(imported, name)
+    # Point caches index vertices by their place in the file: the OBJ importer must keep our order.
+    _check_polygons(r, _check_positions(r, keeps_order=True))
+    assert r["info"]["object"]["modifiers"] == ["MESH_CACHE"]
+
+
+def test_alembic(imported: dict) -> None:
+    r = _result(imported, "alembic")
+    # Our polygons with their orientation: the writer's clockwise corners are undone by the importer.
+    _check_polygons(r, _check_positions(r, keeps_order=True))
+    assert (r["info"]["scene_frame_start"], r["info"]["scene_frame_end"]) == (0, N_FRAMES - 1)
+    assert "MESH_SEQUENCE_CACHE" in r["info"]["object"]["modifiers"]
 
 
 def test_usd_blendshapes_with_head_motion(imported: dict) -> None:
