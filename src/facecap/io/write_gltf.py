@@ -181,10 +181,10 @@ def write_gltf(
     r = 0 if offsets is None else offsets.shape[0]
     if offsets is not None and r == 0:
         raise InputError("targets: expected at least one target (pass targets=None for none)")
+    if weights is not None and offsets is None:
+        raise InputError("weights: given without targets")
     frame_weights = _optional_array(weights, "weights", lambda a: a.ndim == 2 and a.shape[1] == r,
                                     f"(T, {r}) weights, one column per target")
-    if frame_weights is not None and offsets is None:
-        raise InputError("weights: given without targets")
     if frame_weights is not None and frame_weights.shape[0] == 0:
         raise InputError("weights: expected at least one frame")
     marker_xyz = _optional_array(markers, "markers", lambda a: a.ndim == 3 and a.shape[2] == 3 and a.shape[0] > 0,
@@ -418,7 +418,7 @@ def _import_meshopt() -> Any:
         import meshopt
     except ImportError:
         raise InputError(
-            "compress=True needs the meshopt package (meshoptimizer's encoder): pip install 'facecap[gltf-compress]'"
+            "compress=True needs the meshopt package (meshoptimizer's encoder): pip install meshopt"
         ) from None
     return meshopt
 
