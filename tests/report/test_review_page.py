@@ -24,8 +24,10 @@ from matplotlib import colormaps
 from matplotlib.image import imread
 
 from facecap.errors import InputError
+from facecap.io import write_gltf
 from facecap.report import render_mesh, serve, write_html_report, write_review_page
 from facecap.report import review_page as review_page_module
+from facecap.structures import Mesh
 
 from browser import launch_browser, open_page
 
@@ -142,6 +144,16 @@ def write_test_glb(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return V, F.astype(np.int64)
 
 
+def write_facecap_glb(path: Path, *, compress: bool = False) -> dict:
+    """The same take through facecap's own writer (millimetres in, metres in the file, a "Markers" group)."""
+    V, F = _cap_mesh()
+    mesh = Mesh(V.astype(np.float64) * 1000.0, F.astype(np.int64))
+    tracks = _marker_tracks(V)
+    return write_gltf(path, mesh, targets=_morph_targets(V).astype(np.float64) * 1000.0, weights=_weights(),
+                      rate=RATE, markers=tracks.transpose(1, 0, 2).astype(np.float64) * 1000.0,
+                      marker_labels=LABELS, compress=compress)
+
+
 @pytest.fixture(scope="module")
 def browser():
     with launch_browser() as b:
@@ -151,7 +163,9 @@ def browser():
 @pytest.fixture(scope="module")
 def glb_case(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, np.ndarray]:
     folder = tmp_path_factory.mktemp("review")
-    V, F = write_test_glb(folder / "take.glb")
+    write_facecap_glb(folder / "take.glb")
+    write_facecap_glb(folder / "compressed.glb", compress=True)  # EXT_meshopt_compression
+    V, F = write_test_glb(folder / "prefixed.glb")
     return folder, V, F
 
 
@@ -243,7 +257,7 @@ def test_linked_glb_over_localhost(browser: object, glb_case: tuple, tmp_path: P
     folder, _, _ = glb_case
     site = tmp_path / "site"
     site.mkdir()
-    (site / "take.glb").write_bytes((folder / "take.glb").read_bytes())
+    (site / "take.glb").write_bytes((folder / "prefixed.glb").read_bytes())  # `marker:<label>` nodes
     page_path = write_review_page(site / "review.html", site / "take.glb", title="linked", rate=RATE,
                                   n_frames=N_FRAMES, embed=False)
     assert 'id="facecap-glb"' not in page_path.read_text()
@@ -257,6 +271,9 @@ def test_linked_glb_over_localhost(browser: object, glb_case: tuple, tmp_path: P
             assert page.inner_text("#frame") == "5"
             np.testing.assert_allclose(page.evaluate("window.facecapReview.morphWeights()"), _weights()[5],
                                        atol=1e-6)
+            assert page.evaluate("window.facecapReview.markerLabels()") == LABELS
+            np.testing.assert_allclose(page.evaluate("window.facecapReview.markerPositions()"),
+                                       _marker_tracks(_cap_mesh()[0])[:, 5], atol=1e-7)
             assert watch.problems() == []
             assert any(u.endswith("/take.glb") for u in watch.requests)
     finally:
@@ -267,7 +284,7 @@ def test_error_heat_map_colours_and_legend(browser: object, glb_case: tuple) -> 
     folder, V, _ = glb_case
     n = V.shape[0]
     error = np.stack([np.zeros(n), np.full(n, 2.0)])  # row 0 (frames 0-19) at the low end, row 1 at the high
-    page_path = write_review_page(folder / "error.html", folder / "take.glb", title="error", rate=RATE,
+    page_path = write_review_page(folder / "error.html", folder / "compressed.glb", title="error", rate=RATE,
                                   n_frames=N_FRAMES, error=error, error_frames=[0, 20], error_range_mm=(0.0, 2.0))
     inferno = colormaps["inferno"]
     with open_page(browser, page_path.as_uri(), width=600, height=600) as (page, watch):
@@ -284,6 +301,9 @@ def test_error_heat_map_colours_and_legend(browser: object, glb_case: tuple) -> 
             centre = shot[h // 2 - 5:h // 2 + 5, w // 2 - 5:w // 2 + 5].reshape(-1, 3)
             np.testing.assert_allclose(centre.mean(axis=0), expected, atol=0.03)
             assert page.inner_text("#legend-frame") == f"error at frame {0 if frame < 20 else 20}"
+            # The meshopt-compressed file decodes to the same animation.
+            np.testing.assert_allclose(page.evaluate("window.facecapReview.morphWeights()"), _weights()[frame],
+                                       atol=1e-6)
         page.uncheck("#error-toggle")
         shot = _png(page.locator("#canvas").screenshot())
         centre = shot[h // 2 - 5:h // 2 + 5, w // 2 - 5:w // 2 + 5].reshape(-1, 3).mean(axis=0)
@@ -362,6 +382,25 @@ def test_error_quantisation_and_the_page_needs_nothing_from_outside(glb_case: tu
     addresses = re.findall(r'<(?:script|link|img|a)[^>]+(?:src|href)="([^"]*)"', html)
     assert addresses and all(a.startswith("data:") for a in addresses), addresses
     assert "import(" not in html.split('id="facecap-config"')[1].split("three/build/three.core.js")[0]
+
+
+def test_error_on_the_mesh_follows_write_gltfs_seam_split(tmp_path: Path) -> None:
+    # Two triangles sharing the edge 0-2, with different UVs there on each side: a seam.
+    V = np.array([[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0]], float)
+    F = np.array([[0, 1, 2], [0, 2, 3]])
+    uvs = np.array([[0, 0], [1, 0], [1, 1], [0.5, 0], [0.5, 1], [0, 1]], float)
+    mesh = Mesh(V, F, uvs=uvs, uv_indices=np.array([0, 1, 2, 3, 4, 5]))
+    info = write_gltf(tmp_path / "seam.glb", mesh, targets=np.ones((1, 4, 3)), weights=[[0.0], [1.0]], rate=RATE)
+    source = info["vertex_source"]
+    assert source.size == 6 and sorted(set(source.tolist())) == [0, 1, 2, 3]  # vertices 0 and 2 were split
+    error = np.array([0.0, 1.0, 2.0, 3.0])
+    html = write_review_page(tmp_path / "seam.html", tmp_path / "seam.glb", title="t", rate=RATE, n_frames=2,
+                             error=error, vertex_source=source, error_range_mm=(0.0, 3.0)).read_text()
+    levels = np.frombuffer(base64.b64decode(re.search(r'id="facecap-error">([^<]*)<', html).group(1)), np.uint8)
+    np.testing.assert_array_equal(levels, np.round(error[source] / 3.0 * 254))
+    with pytest.raises(InputError, match="GLB's mesh"):  # on the mesh's 4 vertices, without the map
+        write_review_page(tmp_path / "seam.html", tmp_path / "seam.glb", title="t", rate=RATE, n_frames=2,
+                          error=error)
 
 
 def test_serve_serves_the_folder_on_loopback_only(tmp_path: Path) -> None:

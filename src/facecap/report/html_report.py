@@ -92,6 +92,7 @@ class _Section:
 
     def __init__(self, title: str) -> None:
         self.title = title
+        self.unit = _unit(title)  # a group's unit (marker_residual_mm) holds for its rows without their own
         self.rows: list[tuple[str, str, str]] = []
         self.series: dict[str, list[Any]] = {}
         self.lists: list[tuple[str, list[str]]] = []
@@ -113,16 +114,16 @@ class _Section:
             if per_frame:
                 self.series[key] = list(value)
             if len(value) <= _INLINE_LIST and not per_frame:
-                self.rows.append((key, ", ".join(_fmt(v) for v in value), _unit(key)))
+                self.rows.append((key, ", ".join(_fmt(v) for v in value), _unit(key) or self.unit))
             else:
-                self.rows.append((key, _summary(value), _unit(key)))
+                self.rows.append((key, _summary(value), _unit(key) or self.unit))
         elif _text_list(value):
             self.lists.append((key, list(value)))
         elif isinstance(value, (list, tuple)):
             text = json.dumps(value, default=str)
             self.rows.append((key, text if len(text) <= 300 else text[:297] + "...", ""))
         else:
-            self.rows.append((key, _fmt(value), _unit(key)))
+            self.rows.append((key, _fmt(value), _unit(key) or (self.unit if _is_number(value) else "")))
 
 
 def _table(rows: Sequence[tuple[str, str, str]]) -> str:
@@ -159,7 +160,7 @@ def _plot(section: _Section, rate: float | None, n_frames: int | None, folder: P
             continue
         timed = rate is not None and (n_frames is None or length == n_frames)
         times = np.arange(length) / rate if timed else np.arange(length, dtype=np.float64)
-        units = {_unit(k) for k in group}
+        units = {_unit(k) or section.unit for k in group}
         unit = units.pop() if len(units) == 1 else ""
         path = folder / f"plot{len(os.listdir(folder))}.png"
         plot_series(times, {k: np.array([np.nan if v is None else float(v) for v in vals])

@@ -65,6 +65,8 @@ _MODULES: dict[str, tuple[str, tuple[tuple[str, str], ...]]] = {
         ),
     ),
     "three/addons/controls/OrbitControls.js": ("OrbitControls.js", ()),
+    # For GLBs written with EXT_meshopt_compression (facecap.io.write_gltf(compress=True)).
+    "three/addons/libs/meshopt_decoder.module.js": ("meshopt_decoder.module.js", ()),
 }
 _RELATIVE_IMPORT = re.compile(r"""(?:from|import)\s*\(?\s*['"]\.{1,2}/""")
 
@@ -132,8 +134,11 @@ def _glb_summary(glb_path: Path) -> dict[str, Any]:
 
     # The same choice as the page's: the mesh with morph targets, else the one with most vertices.
     face = max(meshes, key=lambda m: (bool(m.get("primitives", [{}])[0].get("targets")), vertex_count(m)))
-    markers = [n.get("name", "")[len("marker:"):] for n in doc.get("nodes") or []
-               if str(n.get("name", "")).startswith("marker:")]
+    nodes = doc.get("nodes") or []
+    markers = [str(n.get("name", ""))[len("marker:"):] for n in nodes if str(n.get("name", "")).startswith("marker:")]
+    for group in nodes:  # facecap.io.write_gltf: the children of a node named "Markers"
+        if group.get("name") == "Markers":
+            markers += [str(nodes[c].get("name", "")) for c in group.get("children") or [] if 0 <= c < len(nodes)]
     return {"n_vertices": vertex_count(face), "marker_labels": markers,
             "n_animations": len(doc.get("animations") or [])}
 
@@ -184,6 +189,22 @@ def _error_levels(
     return levels, frames.tolist(), (lo, hi)
 
 
+def _through_vertex_source(error: Any, vertex_source: Any, n_written: int) -> np.ndarray:
+    """Error per GLB vertex from error per mesh vertex (write_gltf copies mesh vertices along UV seams)."""
+    source = np.asarray(vertex_source)
+    if source.shape != (n_written,) or not np.issubdtype(source.dtype, np.integer):
+        raise InputError(f"vertex_source: expected {n_written} integer indices (one per GLB vertex), "
+                         f"got shape {source.shape}, dtype {source.dtype}")
+    try:
+        E = np.asarray(error, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError("error: expected a numeric (n,) or (S, n) array, mm") from None
+    if E.ndim not in (1, 2) or (source.size and (source.min() < 0 or source.max() >= E.shape[-1])):
+        raise InputError(f"vertex_source: indices must lie in [0, {E.shape[-1] if E.ndim else 0}), the error's "
+                         f"vertex count, got [{source.min()}, {source.max()}]")
+    return E[..., source]
+
+
 def _error_lut() -> list[list[float]]:
     """255 colours of the error map (sRGB, 0-1) for levels 0-254, then the no-value grey."""
     rgb = colormaps[ERROR_CMAP](np.linspace(0.0, 1.0, _NO_VALUE))[:, :3]
@@ -201,6 +222,7 @@ def write_review_page(
     error: Any = None,
     error_frames: Any = None,
     error_range_mm: tuple[float, float] | None = None,
+    vertex_source: Any = None,
     embed: bool | None = None,
 ) -> Path:
     """Write a self-contained HTML page that plays a facecap GLB in the browser (three.js).
@@ -231,6 +253,10 @@ def write_review_page(
         spread over the take (``round(linspace(0, n_frames - 1, S))``).
     error_range_mm : (float, float) or None, optional
         Error mapped to the ends of the colour bar, mm; default ``(0, max error)``.
+    vertex_source : (n_written,) int array or None, optional
+        When ``error`` is given on the mesh that was written rather than on the GLB's vertices:
+        the mesh vertex each GLB vertex copies (``write_gltf``'s ``vertex_source``, which
+        splits vertices along UV seams); the error is then ``error[..., vertex_source]``.
     embed : bool or None, optional
         Put the GLB inside the page (base64), so the page opens from ``file://`` with nothing
         beside it. Default None embeds a GLB of at most :data:`EMBED_LIMIT_BYTES` (60 MB) and
@@ -297,6 +323,8 @@ def write_review_page(
         relative = os.path.relpath(glb.resolve(), out.resolve().parent)
         config["glbUrl"] = urllib.parse.quote(Path(relative).as_posix())
     if error is not None:
+        if vertex_source is not None:
+            error = _through_vertex_source(error, vertex_source, summary["n_vertices"])
         levels, frames, (lo, hi) = _error_levels(error, summary["n_vertices"], n_frames, error_frames,
                                                  error_range_mm)
         config["error"] = {"n": summary["n_vertices"], "frames": frames, "range": [lo, hi], "unit": "mm",

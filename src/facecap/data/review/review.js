@@ -5,6 +5,7 @@
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
+import { MeshoptDecoder } from 'three/addons/libs/meshopt_decoder.module.js';
 
 const config = JSON.parse(document.getElementById('facecap-config').textContent);
 const nFrames = config.nFrames;
@@ -366,13 +367,21 @@ function drawLegend( info ) {
 function findNodes( gltf ) {
 
 	const json = gltf.parser.json;
+	const nodeName = ( object ) => {
+
+		const association = gltf.parser.associations.get( object );
+		return association && association.nodes !== undefined ? ( json.nodes[ association.nodes ].name || '' ) : '';
+
+	};
 	const candidates = [];
 	gltf.scene.traverse( ( object ) => {
 
-		const association = gltf.parser.associations.get( object );
-		const name = association && association.nodes !== undefined ? ( json.nodes[ association.nodes ].name || '' ) : '';
+		const name = nodeName( object );
+		// Markers: nodes named `marker:<label>`, or the children of a node named `Markers`
+		// (facecap.io.write_gltf, whose marker nodes carry a small mesh of their own).
 		if ( name.startsWith( 'marker:' ) ) markers.push( { node: object, label: name.slice( 7 ), sphere: null } );
-		if ( object.isMesh ) candidates.push( object );
+		else if ( object.parent && nodeName( object.parent ) === 'Markers' ) markers.push( { node: object, label: name, sphere: null } );
+		else if ( object.isMesh && ! ( object.parent && markers.some( ( m ) => m.node === object.parent ) ) ) candidates.push( object );
 
 	} );
 	// The face: the mesh with morph targets, else the one with the most vertices.
@@ -391,8 +400,17 @@ function addMarkerSpheres() {
 	const worldScale = new THREE.Vector3();
 	for ( const m of markers ) {
 
+		if ( m.node.isMesh ) { // the file's own marker mesh: show that one
+
+			m.sphere = m.node;
+			m.node.userData.markerLabel = m.label;
+			continue;
+
+		}
+
 		m.sphere = new THREE.Mesh( geometry, material );
-		m.node.getWorldScale( worldScale );
+		// The parent's scale: the node's own may be animated to 0 to hide the marker in a gap.
+		( m.node.parent || m.node ).getWorldScale( worldScale );
 		m.sphere.scale.set( radius / worldScale.x, radius / worldScale.y, radius / worldScale.z );
 		m.sphere.userData.markerLabel = m.label;
 		m.node.add( m.sphere );
@@ -417,7 +435,7 @@ function pickMarker( event ) {
 async function load() {
 
 	const bytes = await glbBytes();
-	const gltf = await new GLTFLoader().parseAsync( bytes, '' );
+	const gltf = await new GLTFLoader().setMeshoptDecoder( MeshoptDecoder ).parseAsync( bytes, '' );
 	scene.add( gltf.scene );
 	faceMesh = findNodes( gltf );
 	if ( ! faceMesh ) throw new Error( 'the GLB holds no mesh' );
