@@ -197,6 +197,10 @@ def _write_inputs(take: Take, d: Path) -> tuple[list[dict], dict[str, np.ndarray
     write_alembic(d / "take.abc", take.mesh, _blocks(take.frames), n_frames=N_FRAMES, rate=RATE, unit_scale=0.001)
     jobs.append(_job("alembic", "alembic", d / "take.abc", out, options={}))
     truth["alembic"] = take.frames
+    # ... and in mm, as `facecap export` writes it (the result's unit): the importer's Scale 0.001.
+    write_alembic(d / "take_mm.abc", take.mesh, _blocks(take.frames), n_frames=N_FRAMES, rate=RATE)
+    jobs.append(_job("alembic_mm", "alembic", d / "take_mm.abc", out, options={"scale": 0.001}))
+    truth["alembic_mm"] = take.frames
 
     # USD blend shapes (UsdSkel): the three fields as shapes, their weights animated, the head motion on /Head.
     rig = ResultRig(rest=take.mesh.vertices, basis=take.targets, coefficients=take.weights)
@@ -394,8 +398,9 @@ def test_point_cache_on_the_obj_rest_mesh(imported: dict, name: str) -> None:
     assert r["info"]["object"]["modifiers"] == ["MESH_CACHE"]
 
 
-def test_alembic(imported: dict) -> None:
-    r = _result(imported, "alembic")
+@pytest.mark.parametrize("name", ["alembic", "alembic_mm"])
+def test_alembic(imported: dict, name: str) -> None:
+    r = _result(imported, name)
     # Our polygons with their orientation: the writer's clockwise corners are undone by the importer.
     _check_polygons(r, _check_positions(r, keeps_order=True))
     assert (r["info"]["scene_frame_start"], r["info"]["scene_frame_end"]) == (0, N_FRAMES - 1)
