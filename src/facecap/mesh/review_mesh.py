@@ -20,6 +20,8 @@ from ..structures import Mesh
 
 __all__ = ["review_mesh", "ReviewMesh"]
 
+_SLIVER_HEIGHT = 0.01  # a triangle lower than 1 % of its longest edge is dropped: edge-on, it covers nothing
+
 
 class ReviewMesh(NamedTuple):
     """The decimated mesh and the scan vertex behind each of its vertices."""
@@ -65,7 +67,9 @@ def review_mesh(mesh: Mesh, max_vertices: int = 100_000) -> ReviewMesh:
     is found by bisection so that the kept vertices are as many as possible
     but at most ``max_vertices``. Triangles are re-indexed, keep their
     orientation, and are dropped when degenerate (two corners in one cube, or
-    zero area) or duplicated (the same three vertices in any order).
+    slivers lower than 1 % of their longest edge, which clustering leaves
+    where three corners fall along one row of cubes: edge-on, they cover
+    nothing) or duplicated (the same three vertices in any order).
 
     Face-varying UVs are carried by UV chart (a connected set of triangles
     sharing UV indices): a kept triangle's corner takes the UV its new vertex
@@ -183,9 +187,10 @@ def _proper_triangles(V: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Mask of the triangles with three distinct corners, non-zero area, first of their vertex set."""
     a, b, c = faces.T
     distinct = (a != b) & (b != c) & (a != c)
-    area2 = np.linalg.norm(np.cross(V[b] - V[a], V[c] - V[a]), axis=1)
-    scale = np.abs(V).max() if V.size else 1.0
-    proper = distinct & (area2 > (1e-12 * max(scale, 1.0)) ** 2)
+    area2 = np.linalg.norm(np.cross(V[b] - V[a], V[c] - V[a]), axis=1)  # twice the area
+    longest2 = np.max([np.einsum("ij,ij->i", V[q] - V[p], V[q] - V[p]) for p, q in ((a, b), (b, c), (c, a))], axis=0)
+    # slivers: height under SLIVER_HEIGHT of the longest edge (three corners along one row of cubes)
+    proper = distinct & (area2 > _SLIVER_HEIGHT * longest2)
     candidates = np.flatnonzero(proper)
     _, first = np.unique(np.sort(faces[candidates], axis=1), axis=0, return_index=True)
     keep = np.zeros(faces.shape[0], dtype=bool)
