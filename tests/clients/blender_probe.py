@@ -21,6 +21,10 @@ Blender process for all of them (bpy's start-up is paid once). A job:
   any attribute of ``bpy.types.MeshCacheModifier``);
 - ``shape_key_range`` (optional): ``[low, high]`` set as every shape key's
   slider range after the import (Blender clamps a shape key's value to it);
+- ``mesh_object`` (optional): the name of the mesh object to evaluate when
+  the import makes several (default: the only one);
+- ``track_objects`` (optional): names of objects whose evaluated world
+  matrices are dumped too (``tracked_<f>``, ``(K, 4, 4)``);
 - ``frames``: the scene frames to evaluate.
 
 For each frame the scene is set (``scene.frame_set``), the depsgraph is
@@ -105,9 +109,13 @@ def run_job(job: dict) -> dict:
     if "FINISHED" not in result:
         raise RuntimeError(f"the {job['importer']} importer returned {result}")
     objects = _mesh_objects()
-    if len(objects) != 1:
+    if job.get("mesh_object"):
+        ob = scene.objects[job["mesh_object"]]
+    elif len(objects) == 1:
+        ob = objects[0]
+    else:
         raise RuntimeError(f"expected one mesh object, the import made {[o.name for o in objects]}")
-    ob = objects[0]
+    tracked = [scene.objects[name] for name in job.get("track_objects", [])]
     shape_key_sliders = _describe(ob)["shape_keys"]  # as the importer left them
     if job.get("shape_key_range") and ob.data.shape_keys:
         low, high = job["shape_key_range"]
@@ -120,7 +128,12 @@ def run_job(job: dict) -> dict:
     arrays: dict[str, np.ndarray] = {}
     for frame in job["frames"]:
         scene.frame_set(int(frame))
-        arrays[f"frame_{int(frame)}"] = _world_vertices(ob, bpy.context.evaluated_depsgraph_get())
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        arrays[f"frame_{int(frame)}"] = _world_vertices(ob, depsgraph)
+        if tracked:
+            arrays[f"tracked_{int(frame)}"] = np.array(
+                [np.array(o.evaluated_get(depsgraph).matrix_world, dtype=np.float64) for o in tracked]
+            )
     rest = np.empty(len(ob.data.vertices) * 3, dtype=np.float32)
     ob.data.vertices.foreach_get("co", rest)
     sizes = np.empty(len(ob.data.polygons), dtype=np.int32)

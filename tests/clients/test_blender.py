@@ -115,6 +115,13 @@ class Take:
             self.head_pose[k, :3, :3] = Ry @ Rx
             self.head_pose[k, :3, 3] = [40.0 * k / N_FRAMES, 1500.0, -20.0 + 3.0 * np.sin(k)]
 
+        # Three markers 3 mm off the skin at known vertices, the first one lost over the middle frames.
+        self.marker_vertices = np.array([20, 100, 200])
+        self.markers = self.frames[:, self.marker_vertices] + np.array([0.0, 0.0, 3.0])
+        self.marker_gap = slice(N_FRAMES // 2 - 5, N_FRAMES // 2 + 6)
+        self.markers[self.marker_gap, 0] = np.nan
+        self.marker_labels = ["M_brow", "M_cheek", "M_chin"]
+
     def world_frames(self) -> np.ndarray:
         """The frames placed by the head motion (mm, Y up): what the USD stage shows."""
         R, tr = self.head_pose[:, :3, :3], self.head_pose[:, :3, 3]
@@ -174,12 +181,15 @@ def _write_inputs(take: Take, d: Path) -> tuple[list[dict], dict[str, np.ndarray
     truth["obj"] = take.frames
 
     # glTF: the rest mesh, the three fields as morph targets, their weights animated (metres in the file).
-    info = write_gltf(d / "take.glb", take.mesh, targets=take.targets, weights=take.weights, rate=RATE)
+    # The markers ride along as nodes with animated translations (hidden by a zero scale in their gaps).
+    info = write_gltf(d / "take.glb", take.mesh, targets=take.targets, weights=take.weights, rate=RATE,
+                      markers=take.markers, marker_labels=take.marker_labels)
     assert info["n_vertices"] > take.mesh.n_vertices  # split along the UV seam
-    jobs.append(_job("gltf", "gltf", d / "take.glb", out, options={}, shape_key_range=list(SHAPE_KEY_RANGE)))
+    jobs.append(_job("gltf", "gltf", d / "take.glb", out, options={}, shape_key_range=list(SHAPE_KEY_RANGE),
+                     mesh_object="Face", track_objects=take.marker_labels))
     truth["gltf"] = take.frames
     # The same file imported as it comes, for the importer's slider ranges (test_gltf_importer_slider_ranges).
-    jobs.append(_job("gltf_as_imported", "gltf", d / "take.glb", out, options={}))
+    jobs.append(_job("gltf_as_imported", "gltf", d / "take.glb", out, options={}, mesh_object="Face"))
     truth["gltf_as_imported"] = take.frames
 
     # MDD and PC2: the rest mesh as OBJ (vertex order kept) and a Mesh Cache modifier playing the file,
@@ -369,6 +379,21 @@ def test_gltf_morph_targets(imported: dict) -> None:
     assert info["object"]["shape_keys_animated"]
     # The weights' times (k / rate s) land on scene frame k at the take's rate.
     assert info["scene_fps"] == RATE
+
+
+def test_gltf_markers(imported: dict) -> None:
+    """Each marker node sits where the marker is (1e-3 mm) and is hidden (scale 0) in its gap."""
+    r = _result(imported, "gltf")
+    take = r["take"]
+    for frame in r["job"]["frames"]:
+        matrices = r["arrays"][f"tracked_{frame}"]  # (K, 4, 4) world
+        scale = np.linalg.norm(matrices[:, :3, :3], axis=1).mean(axis=1)
+        seen = ~np.isnan(take.markers[frame, :, 0])
+        np.testing.assert_allclose(scale, np.where(seen, 1.0, 0.0), atol=1e-6)
+        error_mm = np.linalg.norm(matrices[seen, :3, 3] - to_blender(take.markers[frame, seen]), axis=1) * 1000
+        print(f"gltf markers, frame {frame}: max error {error_mm.max():.3g} mm, hidden {np.flatnonzero(~seen)}")
+        assert error_mm.max() < TOLERANCE_MM
+    assert np.isnan(take.markers[CHECK_FRAMES[1], 0, 0])  # so the middle frame checks a gap
 
 
 def test_gltf_importer_slider_ranges(imported: dict) -> None:
