@@ -230,7 +230,7 @@ def test_page_plays_the_glb_offline_from_file(browser: object, glb_case: tuple, 
                       f"bottom: {bounds[2]}, top: {bounds[3]}}})")
         page.evaluate(f"window.facecapReview.setFrame({KEY_FRAME})")
         shot = _png(page.locator("#canvas").screenshot())
-        background = np.array([0x1B, 0x1D, 0x21]) / 255
+        background = np.array([0x33, 0x37, 0x3D]) / 255
         page_mask = np.abs(shot - background).max(axis=2) > 0.06
 
         # The canvas's CSS box may be a fractional pixel taller than its drawing buffer: draw the

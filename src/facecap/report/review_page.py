@@ -45,7 +45,7 @@ ERROR_CMAP = "inferno"
 _NO_VALUE = 255
 """Quantised error level meaning 'no value' (NaN), drawn grey; levels 0-254 span the range."""
 _NO_VALUE_GREY = (0.62, 0.62, 0.62)
-_BACKGROUND = "#1b1d21"
+_BACKGROUND = "#33373d"
 _DATA = Path(__file__).resolve().parent.parent / "data"
 _THREE_REVISION = "187"
 
