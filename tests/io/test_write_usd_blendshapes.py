@@ -118,3 +118,24 @@ def test_bad_input(tmp_path):
     assert list(tmp_path.iterdir()) == []
     with pytest.raises(InputError, match="not a finished facecap result"):
         export_result(tmp_path, "usd")
+
+
+def test_principal_component_shapes_stay_within_their_stated_error(capture_case, tmp_path):
+    scan = read_mesh(capture_case.scan_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # head-band markers not in the map: an expected notice
+        animate_scan(scan, read_markers(capture_case.markers_path), read_correspondence(capture_case.map_path, scan),
+                     tmp_path / "out", progress=False, write_vertices=False)
+    report = export_result(tmp_path / "out", "usd", usd_shapes=8)["usd"]
+    assert report["principal_components"] and report["n_shapes"] == 8
+    error = report["error"]
+    _assert_valid(tmp_path / "out" / "performance_rig.usdc")
+    result = read_result(tmp_path / "out")
+    frames = list(range(result.n_frames))
+    points, _ = usdskel_points(tmp_path / "out" / "performance_rig.usdc", frames)
+    residual = np.stack(points) - result.frames()
+    worst = np.linalg.norm(residual, axis=2).max()
+    rms = np.sqrt(np.mean(np.sum(residual.astype(np.float64) ** 2, axis=2)))
+    assert worst == pytest.approx(error["max_mm"], rel=1e-3, abs=1e-4)  # the stated figures are the true ones
+    assert rms == pytest.approx(error["rms_mm"], rel=1e-3, abs=1e-5)
+    assert 0 < error["rms_mm"] < worst  # and 8 shapes do not rebuild 90 markers' motion exactly

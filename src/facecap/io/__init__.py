@@ -54,7 +54,8 @@ from .write_alembic import write_alembic
 from .write_gltf import MAX_MORPH_TARGETS, MORPH_GPU_BUDGET_BYTES, MORPH_GPU_BYTES_PER_VERTEX_TARGET, write_gltf
 from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, read_rig, write_rig
 from .read_result import MESH_FILE, Result, read_result
-from .write_usd_blendshapes import DEFAULT_BLENDSHAPE_TOLERANCE_MM, write_usd_blendshapes
+from .write_usd_blendshapes import (DEFAULT_BLENDSHAPE_TOLERANCE_MM, DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES,
+                                    write_usd_blendshapes)
 from .export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES, export_result, parse_export_formats
 
 __all__ = [
@@ -89,6 +90,8 @@ __all__ = [
     "MESH_FILE",
     "write_usd_blendshapes",
     "DEFAULT_BLENDSHAPE_TOLERANCE_MM",
+    "DEFAULT_USD_COMPONENTS",
+    "USD_EXACT_MAX_BYTES",
     "export_result",
     "parse_export_formats",
     "DEFAULT_GLTF_TARGETS",

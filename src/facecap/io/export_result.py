@@ -27,12 +27,13 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from pathlib import Path
 from typing import Any, Iterable
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FacecapWarning, InputError
 from .read_result import Result, read_result
 from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS
 
@@ -69,6 +70,7 @@ def export_result(
     gltf_targets: int = DEFAULT_GLTF_TARGETS,
     review_vertices: int = DEFAULT_REVIEW_VERTICES,
     gltf_compress: bool = False,
+    usd_shapes: str | int = "auto",
     batch_frames: int = 64,
     skip_streamed: bool = False,
     progress: bool = False,
@@ -90,7 +92,13 @@ def export_result(
     review_vertices : int, default 100,000
         Most vertices of the glTF review mesh.
     gltf_compress : bool, default False
-        meshopt compression of the glTF buffers, where supported.
+        meshopt compression of the glTF buffers (``EXT_meshopt_compression``).
+    usd_shapes : 'auto', 'exact' or int, default 'auto'
+        Blend shapes of the USD rig: 'exact' (3 per marker for the thin shell),
+        a count (principal components when the exact form needs more), or
+        'auto': exact up to :data:`~facecap.io.write_usd_blendshapes.USD_EXACT_MAX_BYTES`
+        of shapes, else :data:`~facecap.io.write_usd_blendshapes.DEFAULT_USD_COMPONENTS`
+        principal components (with a notice; the error is in the report).
     batch_frames : int, default 64
         Frames per block read.
     skip_streamed : bool, default False
@@ -119,7 +127,8 @@ def export_result(
             continue
         writer = _WRITERS[fmt]
         report[fmt] = writer(result, target, batch_frames=batch_frames, progress=progress,
-                             gltf_targets=gltf_targets, review_vertices=review_vertices, gltf_compress=gltf_compress)
+                             gltf_targets=gltf_targets, review_vertices=review_vertices, gltf_compress=gltf_compress,
+                             usd_shapes=usd_shapes)
     if target == result.path:
         _record(result.path, report)
     return report
@@ -142,13 +151,31 @@ def _sizes(*paths: Path) -> dict[str, int]:
     return {p.name: p.stat().st_size for p in paths if p.is_file()}
 
 
-def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bool, **_: Any) -> dict[str, Any]:
+def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bool, usd_shapes: str | int,
+                **_: Any) -> dict[str, Any]:
     if result.rig is not None:
-        from .write_usd_blendshapes import write_usd_blendshapes
+        from .write_usd_blendshapes import DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES, write_usd_blendshapes
 
+        rig = result.rig
+        exact_count = 3 * rig.n_basis if rig.kind == "vertex-weights" else rig.n_basis
+        if usd_shapes == "exact":
+            max_shapes = None
+        elif usd_shapes == "auto":
+            too_big = 12 * exact_count * rig.n_vertices > USD_EXACT_MAX_BYTES
+            max_shapes = DEFAULT_USD_COMPONENTS if too_big else None
+            if too_big:
+                warnings.warn(
+                    f"USD: the exact rig needs {exact_count} blend shapes of {rig.n_vertices} vertices "
+                    f"({12 * exact_count * rig.n_vertices / 1e9:.1f} GB); writing its first {max_shapes} principal "
+                    "components instead (error in performance.json; the exact form is rig/, or --usd-shapes exact)",
+                    FacecapWarning, stacklevel=3)
+        else:
+            max_shapes = int(usd_shapes)
+            if max_shapes < 1:
+                raise InputError(f"--usd-shapes: expected 'auto', 'exact' or a positive count, got {usd_shapes!r}")
         path = target / "performance_rig.usdc"
-        stats = write_usd_blendshapes(path, result.mesh, result.rig, rate=result.rate,
-                                      head_motion=result.head_motion, progress=progress)
+        stats = write_usd_blendshapes(path, result.mesh, rig, rate=result.rate, head_motion=result.head_motion,
+                                      max_shapes=max_shapes, progress=progress)
         return {"files": _sizes(path), **stats}
     from .write_usd import UsdPerformanceWriter
 

@@ -22,6 +22,14 @@ take: the shell's weights decay away from their marker, and the far vertices'
 contributions are below float32's resolution of the coordinates. The dropped
 contributions add up to at most ``tolerance`` at any vertex and frame (the
 bound is written into the layer's documentation and returned).
+
+Those exact shapes cost ``3 K n`` vectors: 2.3 GB at 700k vertices and 90
+markers, where the rig itself is 0.26 GB. With ``max_shapes`` the stage holds
+the take's first principal components instead
+(:func:`facecap.deform.principal_targets_from_rig`), and the error they leave
+(RMS over the take, exact; the maximum where asked) is returned and written
+into the layer's documentation. :func:`facecap.io.export_result` chooses:
+exact up to :data:`USD_EXACT_MAX_BYTES` of shapes, principal components beyond.
 """
 
 from __future__ import annotations
@@ -40,10 +48,16 @@ from ..units import mm_per_unit
 from ._atomic import atomic_path
 from .result_rig import ResultRig
 
-__all__ = ["write_usd_blendshapes", "DEFAULT_BLENDSHAPE_TOLERANCE_MM"]
+__all__ = ["write_usd_blendshapes", "DEFAULT_BLENDSHAPE_TOLERANCE_MM", "USD_EXACT_MAX_BYTES", "DEFAULT_USD_COMPONENTS"]
 
 DEFAULT_BLENDSHAPE_TOLERANCE_MM = 1e-4
 """Largest vertex error the dropped far-field shape entries may add up to, mm."""
+
+USD_EXACT_MAX_BYTES = 1 << 30
+"""Largest exact set of blend shapes (``12 m n`` bytes) the automatic choice writes; principal components beyond."""
+
+DEFAULT_USD_COMPONENTS = 48
+"""Blend shapes of a principal-component USD rig (the size bar at 700k vertices: rig + USD under 1/100 of the frames)."""
 
 _ROOT, _SKELETON, _ANIMATION, _FACE = "/Head", "/Head/Skeleton", "/Head/Animation", "/Head/Face"
 
@@ -56,6 +70,8 @@ def write_usd_blendshapes(
     rate: float,
     head_motion: np.ndarray | None = None,
     tolerance_mm: float = DEFAULT_BLENDSHAPE_TOLERANCE_MM,
+    max_shapes: int | None = None,
+    exact_max_error: bool = True,
     progress: bool = False,
 ) -> dict[str, Any]:
     """Write ``rig`` as UsdSkel blend shapes with their weights animated at ``rate``.
@@ -74,14 +90,22 @@ def write_usd_blendshapes(
         Head motion per frame (translation in the rig's unit) on ``/Head``.
     tolerance_mm : float, default 1e-4
         Bound on what the dropped far-field entries may add up to (see the module docstring); 0 keeps every entry.
+    max_shapes : int, optional
+        Write at most this many shapes: the take's principal components when
+        the exact rig needs more (the error they leave is returned); default
+        None: the exact shapes.
+    exact_max_error : bool, default True
+        With principal components, also compute the largest vertex error over
+        the take (one pass over it; the RMS figures are always exact).
     progress : bool, default False
 
     Returns
     -------
     dict
         ``n_shapes``, ``stored_entries`` (shape x vertex entries written),
-        ``dense_entries`` (what full shapes would hold), ``error_bound_mm``,
-        ``bytes``.
+        ``dense_entries`` (what full shapes would hold), ``error_bound_mm``
+        (of the dropped entries), ``principal_components`` (bool) with
+        ``error`` (mm: ``rms_mm``, ``max_mm``, ...) when they were used, ``bytes``.
 
     Raises
     ------
@@ -103,8 +127,24 @@ def write_usd_blendshapes(
             raise InputError(f"head_motion: expected finite ({rig.n_frames}, 4, 4), got {head_motion.shape}")
     tolerance = float(tolerance_mm) / mm_per_unit(rig.units)
 
-    shapes, names = rig.shapes()
-    weights = rig.shape_weights()
+    principal = None
+    exact_count = 3 * rig.n_basis if rig.kind == "vertex-weights" else rig.n_basis
+    if max_shapes is not None and exact_count > int(max_shapes):
+        from ..deform.principal_targets import principal_targets_from_rig
+
+        to_mm = np.float32(mm_per_unit(rig.units))
+        vector = rig.kind == "shapes"
+        principal = principal_targets_from_rig(rig.dense_basis() * (to_mm if vector else 1),
+                                               rig.coefficients * (1 if vector else to_mm),
+                                               max_targets=int(max_shapes), exact_max=exact_max_error,
+                                               progress=progress)
+        shapes = principal.targets / to_mm
+        weights = principal.weights
+        names = [f"pc{j:03d}" for j in range(shapes.shape[0])]
+        tolerance = 0.0  # principal shapes are dense: nothing to drop
+    else:
+        shapes, names = rig.shapes()
+        weights = rig.shape_weights()
     m, T = shapes.shape[0], rig.n_frames
     peak_weight = np.abs(weights).max(axis=0)  # (m,)
     share = tolerance / m if tolerance > 0 else 0.0
@@ -173,9 +213,14 @@ def write_usd_blendshapes(
             if transform_path is not None:
                 layer.SetTimeSample(transform_path, float(t), Gf.Matrix4d(head_motion[t].T.tolist()))
     bound = share * m if share > 0 else 0.0
+    error = None if principal is None else {k: (float(v) if isinstance(v, (float, np.floating)) else v)
+                                            for k, v in principal.error.items()}
     layer.documentation = (
         f"facecap rig as UsdSkel blend shapes: {m} shapes, {rig.n_vertices} vertices, {T} frames at {rate:g} Hz, "
-        f"unit {rig.units}; far-field entries dropped add up to at most {bound * mm_per_unit(rig.units):.3g} mm"
+        f"unit {rig.units}; "
+        + (f"far-field entries dropped add up to at most {bound * mm_per_unit(rig.units):.3g} mm" if principal is None
+           else f"the take's first {m} principal components: error RMS {error['rms_mm']:.3g} mm, "
+                f"max {error['max_mm'] if error['max_mm'] is None else round(error['max_mm'], 4)} mm")
     )
     del stage
     with atomic_path(path) as tmp:
@@ -186,6 +231,8 @@ def write_usd_blendshapes(
         "stored_entries": int(stored),
         "dense_entries": int(m * rig.n_vertices),
         "error_bound_mm": float(bound * mm_per_unit(rig.units)),
+        "principal_components": principal is not None,
+        **({"error": error} if error is not None else {}),
         "bytes": path.stat().st_size,
     }
 

@@ -1,0 +1,102 @@
+"""A result as one glTF review file: a decimated mesh, its principal morph targets, their animation.
+
+The glTF export of a result (``--export gltf``, ``facecap export --format
+gltf``) is what a browser or a DCC tool can play without the full frames:
+
+1. the review mesh: at most ``max_vertices`` of the scan's own vertices
+   (:func:`facecap.mesh.review_mesh`: vertex clustering, so every kept vertex
+   moves exactly as in the result);
+2. the morph targets: the take's motion at those vertices as its first
+   principal components (:mod:`facecap.deform.principal_targets`): exact when
+   the rig has at most ``max_targets`` elements (the blend's bases), otherwise
+   the best ``max_targets`` in the least-squares sense, with the error they
+   leave computed exactly and returned (it goes into ``performance.json``'s
+   ``exports_report`` and the file's ``asset.extras``);
+3. :func:`facecap.io.write_gltf` writes them in metres with the weights
+   animation at the take's rate and the markers as animated nodes.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from .read_result import Result
+
+__all__ = ["write_gltf_review"]
+
+
+def write_gltf_review(
+    path: str | os.PathLike[str],
+    result: Result,
+    *,
+    max_targets: int = 64,
+    max_vertices: int = 100_000,
+    compress: bool = False,
+    batch_frames: int = 64,
+    progress: bool = False,
+) -> dict[str, Any]:
+    """Write ``result`` as a ``.glb`` review file; returns what was written and the error it leaves.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.glb`` to write (atomically).
+    result : Result
+        An opened result folder (:func:`facecap.io.read_result`).
+    max_targets : int, default 64
+    max_vertices : int, default 100,000
+    compress : bool, default False
+        ``EXT_meshopt_compression``.
+    batch_frames : int, default 64
+        Frames per block when the result has no rig (streamed randomized SVD).
+    progress : bool, default False
+
+    Returns
+    -------
+    dict
+        ``review_vertices``, ``decimated`` (bool), ``n_targets``, ``error``
+        (mm: ``max_mm``, ``rms_mm``, ... over the review mesh and the take),
+        ``gpu_morph_bytes``, ``bytes``.
+    """
+    from ..deform.principal_targets import principal_targets, principal_targets_from_rig
+    from ..mesh.review_mesh import review_mesh
+    from .write_gltf import write_gltf
+
+    review = review_mesh(result.mesh, max_vertices=max_vertices)
+    subset = review.vertex_subset
+    to_mm = np.float32(result.mm_per_unit)
+    rig = result.rig
+    if rig is not None:
+        scale = np.float32(1.0) if rig.kind == "vertex-weights" else to_mm  # the unit is in the coefficients or the shapes
+        coefficients = rig.coefficients * (to_mm if rig.kind == "vertex-weights" else np.float32(1.0))
+        basis = rig.dense_basis(subset) * scale
+        found = principal_targets_from_rig(basis, coefficients, max_targets=max_targets, progress=progress)
+        base = review.mesh.with_vertices(rig.rest[subset].astype(np.float64) * float(to_mm))
+    else:
+        def blocks() -> Any:
+            for start, block in result.blocks(batch_frames):
+                yield start, block * to_mm
+        found = principal_targets(blocks, result.mesh.vertices, n_frames=result.n_frames, vertex_subset=subset,
+                                  max_targets=max_targets, progress=progress)
+        base = review.mesh
+    markers = None if result.markers is None else result.markers * to_mm
+    error = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in found.error.items()}
+    info = write_gltf(
+        path, base, targets=found.targets, weights=found.weights, rate=result.rate,
+        markers=markers, marker_labels=list(result.marker_labels) or None,
+        compress=compress, progress=progress,
+        extras={"facecap": {"result": str(result.path.name), "method": result.info.get("method"),
+                            "review_vertices": int(subset.size), "scan_vertices": result.n_vertices,
+                            "principal_component_error_mm": error}},
+    )
+    return {
+        "review_vertices": int(subset.size),
+        "decimated": bool(subset.size < result.n_vertices),
+        "n_targets": int(info["n_targets"]),
+        "error": error,
+        "gpu_morph_bytes": int(info["gpu_morph_bytes"]),
+        "bytes": int(info["bytes"]),
+    }
