@@ -23,6 +23,7 @@ every Blender vertex to one of ours and cover all of ours.
 from __future__ import annotations
 
 import json
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -30,7 +31,10 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from facecap.io import UsdPerformanceWriter, write_mesh
+from conftest import CaptureCase
+from facecap.deform import animate_scan
+from facecap.io import (UsdPerformanceWriter, export_result, read_correspondence, read_markers, read_mesh,
+                        read_result, write_mesh)
 from facecap.io.result_rig import ResultRig
 from facecap.io.write_alembic import write_alembic
 from facecap.io.write_gltf import write_gltf
@@ -241,6 +245,11 @@ def imported(blender: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[st
     d = tmp_path_factory.mktemp("blender_client")
     take = Take()
     jobs, truth = _write_inputs(take, d)
+    return _run_probe(blender, d, jobs, truth, take=take)
+
+
+def _run_probe(blender: Path, d: Path, jobs: list[dict], truth: dict, **extra) -> dict[str, dict]:
+    """Run every job in one Blender process; per job its arrays, info, job and truth (or its error)."""
     (d / "jobs.json").write_text(json.dumps({"jobs": jobs}))
     try:
         log = run_blender_script(blender, PROBE, str(d / "jobs.json"), timeout=300)
@@ -254,9 +263,53 @@ def imported(blender: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[st
             results[job["name"]] = {"error": str(arrays["error"]), "log": log}
             continue
         info = json.loads(str(arrays.pop("info")))
-        results[job["name"]] = {"arrays": arrays, "info": info, "job": job, "truth": truth[job["name"]],
-                                "take": take, "log": log}
+        results[job["name"]] = {"arrays": arrays, "info": info, "job": job, "truth": truth[job["name"]], **extra}
     return results
+
+
+@pytest.fixture(scope="module")
+def exported(blender: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict]:
+    """What artists get: `facecap animate` on the shared capture case, `facecap export` of every format.
+
+    The truth is the result folder's own ``vertices.npy`` (stabilised, mm) and
+    ``head_motion.npy``, read through :func:`facecap.io.read_result`.
+    """
+    d = tmp_path_factory.mktemp("blender_export")
+    case = CaptureCase(d, head_motion=True)
+    scan = read_mesh(case.scan_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # head-band markers not in the map: an expected notice
+        animate_scan(scan, read_markers(case.markers_path), read_correspondence(case.map_path, scan),
+                     d / "out", stabilize=True, progress=False)
+    folder = d / "out"
+    export_result(folder, "usd,gltf,mdd,pc2,abc,obj")
+    result = read_result(folder)
+    assert result.units == "mm" and result.head_motion is not None
+    frames = result.frames().astype(np.float64) * result.mm_per_unit
+    R, tr = result.head_motion[:, :3, :3], result.head_motion[:, :3, 3] * result.mm_per_unit
+    world = np.einsum("tij,tnj->tni", R, frames) + tr[:, None]
+    T = result.n_frames
+    checked = (0, T // 2, T - 1)
+    out = d / "blender"
+    out.mkdir()
+    jobs = [
+        _job("usd", "usd", folder / "performance_rig.usdc", out, options={}, take_frames=checked,
+             shape_key_range=list(SHAPE_KEY_RANGE)),
+        _job("gltf", "gltf", folder / "performance.glb", out, options={}, take_frames=checked,
+             shape_key_range=list(SHAPE_KEY_RANGE), mesh_object="Face"),
+        _job("obj", "obj", folder / "obj" / f"frame_{checked[1]:06d}.obj", out, options={"global_scale": 0.001},
+             take_frames=[checked[1]], frames=[0]),
+        _job("alembic", "alembic", folder / "performance.abc", out, options={"scale": 0.001}, take_frames=checked),
+    ]
+    for cache_format in ("MDD", "PC2"):
+        jobs.append(_job(cache_format.lower(), "obj", folder / "performance_rest.obj", out,
+                         options={"global_scale": 0.001}, take_frames=checked,
+                         mesh_cache={"filepath": str(folder / f"performance.{cache_format.lower()}"),
+                                     "cache_format": cache_format, **MESH_CACHE_SETTINGS}))
+    truth = {job["name"]: frames for job in jobs}
+    truth["usd"] = world
+    spacing_mm = float(np.linalg.norm(scan.vertices[1] - scan.vertices[0]))
+    return _run_probe(blender, out, jobs, truth, spacing_mm=spacing_mm, result=result)
 
 
 def _result(imported: dict, name: str) -> dict:
@@ -269,12 +322,14 @@ def _result(imported: dict, name: str) -> dict:
 # ------------------------------------------------------------------- checks
 
 
-def vertex_map(blender_m: np.ndarray, ours_m: np.ndarray, *, tolerance_m: float) -> np.ndarray:
+def vertex_map(blender_m: np.ndarray, ours_m: np.ndarray, *, tolerance_m: float,
+               separation_m: float = 0.5 * SPACING_MM / 1000.0) -> np.ndarray:
     """For each Blender vertex, the index of our vertex at its position, asserting it is unique.
 
     Every Blender vertex must have one of ours within ``tolerance_m`` and the
-    next nearest of ours at least half a grid step away (so the match is not a
-    guess); every one of ours must be matched at least once.
+    next nearest of ours at least ``separation_m`` away (default half a grid
+    step, so the match is not a guess); every one of ours must be matched at
+    least once.
     """
     distance, index = cKDTree(ours_m).query(blender_m, k=2)
     far = distance[:, 0] > tolerance_m
@@ -282,7 +337,7 @@ def vertex_map(blender_m: np.ndarray, ours_m: np.ndarray, *, tolerance_m: float)
         f"{far.sum()} of Blender's {len(blender_m)} vertices have none of ours within {tolerance_m * 1e3:g} mm "
         f"(worst {distance[:, 0].max() * 1e3:.4g} mm)"
     )
-    assert distance[:, 1].min() > 0.5 * SPACING_MM / 1000.0, "a Blender vertex lies near two of ours"
+    assert distance[:, 1].min() > separation_m, "a Blender vertex lies near two of ours"
     missing = np.setdiff1d(np.arange(len(ours_m)), index[:, 0])
     assert missing.size == 0, f"{missing.size} of our vertices have no Blender vertex, e.g. {missing[:5]}"
     return index[:, 0]
@@ -301,14 +356,16 @@ def _map_at_first_frame(r: dict) -> np.ndarray:
     """Blender's vertices matched to ours at the job's first checked frame (see :func:`vertex_map`)."""
     job = r["job"]
     first = to_blender(r["truth"][job["take_frames"][0]])
-    return vertex_map(r["arrays"][f"frame_{job['frames'][0]}"], first, tolerance_m=TOLERANCE_MM / 1000.0)
+    spacing_m = r.get("spacing_mm", SPACING_MM) / 1000.0
+    return vertex_map(r["arrays"][f"frame_{job['frames'][0]}"], first, tolerance_m=TOLERANCE_MM / 1000.0,
+                      separation_m=0.5 * spacing_m)
 
 
 def _check_positions(r: dict, *, keeps_order: bool) -> np.ndarray:
     """Match Blender's vertices to ours at the first checked frame, then compare every checked frame."""
     mapping = _map_at_first_frame(r)
     if keeps_order:
-        assert np.array_equal(mapping, np.arange(r["take"].mesh.n_vertices)), "Blender reordered the vertices"
+        assert np.array_equal(mapping, np.arange(len(r["truth"][0]))), "Blender reordered the vertices"
     errors = frame_errors_mm(r, mapping)
     print(f"{r['job']['name']}: max error (mm) per Blender frame: {errors}")
     assert max(errors.values()) < TOLERANCE_MM, errors
@@ -441,3 +498,10 @@ def test_usd_blendshapes_with_head_motion(imported: dict) -> None:
     assert (info["scene_frame_start"], info["scene_frame_end"]) == (0, N_FRAMES - 1)
     # As imported, every shape key's range is [0, 1]: the take's weights outside it would be clamped.
     assert [(k["slider_min"], k["slider_max"]) for k in info["imported_shape_keys"][1:]] == [(0.0, 1.0)] * 3
+
+
+@pytest.mark.parametrize("name", ["usd", "gltf", "obj", "mdd", "pc2", "alembic"])
+def test_facecap_export_in_blender(exported: dict, name: str) -> None:
+    """Each file `facecap export` writes shows the result's frames in Blender (USD: with its head motion)."""
+    r = _result(exported, name)
+    _check_positions(r, keeps_order=name != "gltf")
