@@ -171,6 +171,19 @@ def _plot(section: _Section, rate: float | None, n_frames: int | None, folder: P
     return plots
 
 
+def _plain(value: Any) -> Any:
+    """JSON-like Python values from what a caller may pass (numpy arrays and scalars, tuples)."""
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, np.ndarray):
+        return _plain(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
 def _read_json(path: Path) -> dict[str, Any] | None:
     if not path.is_file():
         return None
@@ -243,7 +256,7 @@ def write_html_report(
         if report_data is None:
             raise InputError("report file not found", path=str(report))
     elif isinstance(report, Mapping):
-        report_data = dict(report)
+        report_data = _plain(report)
     else:
         raise InputError(f"report: expected a mapping or the path of a JSON file, got {type(report).__name__}")
     performance = _read_json(result / "performance.json") or {}
