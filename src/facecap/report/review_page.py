@@ -393,8 +393,8 @@ class ReviewServer(ThreadingHTTPServer):
 
 def serve(
     folder: str | os.PathLike[str],
-    *,
     port: int = 0,
+    *,
     page: str | None = "review.html",
     block: bool = False,
     quiet: bool = False,
