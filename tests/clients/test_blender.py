@@ -18,6 +18,11 @@ next nearest is a grid step away); formats that carry vertex order (USD, OBJ,
 and the point caches, which index vertices by position in the file) must keep
 it exactly, formats that may split vertices along UV seams (glTF) must map
 every Blender vertex to one of ours and cover all of ours.
+
+End to end (``exported``): the shared capture case animated with head motion
+(``animate_scan``), exported with ``export_result`` as ``facecap export``
+does, each file imported as docs/clients.md says, and compared with the
+result folder's own ``vertices.npy`` and ``head_motion.npy``.
 """
 
 from __future__ import annotations
