@@ -96,22 +96,20 @@ def principal_targets_from_rig(
     -----
     With ``G = M^T M = E diag(lambda) E^T``, the columns of
     ``Q = M E lambda^-1/2`` are orthonormal, so ``D = (A E lambda^1/2) Q^T``
-    and the SVD of the small ``A E lambda^1/2 = U S W^T`` (T x m) is the SVD
-    of ``D``: targets ``M E lambda^-1/2 W_r``, weights ``U_r S_r``. For the
-    scalar basis ``G = (B B^T) kron I_3``. The error figures are exact: the
-    residual energy is the sum of the discarded ``s^2``, a frame's the
-    discarded part of its row of ``U S``, a vertex's ``m_i^T H m_i`` with
-    ``H`` the discarded directions' Gram matrix; the maximum needs the
+    and the SVD of the small ``A~ = A E lambda^1/2 = U S W^T`` (T x m) is
+    the SVD of ``D``; ``W`` comes from the eigenvectors of ``A~^T A~``
+    (m x m). Targets ``M E lambda^-1/2 W_r``, weights ``A~ W_r``. For the
+    scalar basis ``G = (B B^T) kron I_3``. The error figures are exact: with
+    ``Y = A~ W_res`` (the discarded coordinates of each frame), a frame's
+    residual energy is its row of ``Y`` squared, the take's their sum, a
+    vertex's ``m_i^T P Y^T Y P^T m_i`` with ``P = E lambda^-1/2 W_res``;
+    the maximum needs the
     residual at every vertex and frame, computed block by block as
     ``A_res M^T`` (never the whole T x n at once). Figures are of the
     decomposition in float64; storing targets and weights in float32 moves
     frames by about 1e-7 of their size.
     """
-    B, A, scalar = _rig_arrays(basis, coefficients)
-    n_all = B.shape[1]
-    subset = _subset(vertex_subset, n_all)
-    if subset is not None:
-        B = B[:, subset]
+    B, A, scalar = _rig_arrays(basis, coefficients, vertex_subset)
     max_r = _max_targets(max_targets)
     tol = _tolerance(tolerance_mm)
     T, K = A.shape[0], B.shape[0]
@@ -124,24 +122,31 @@ def principal_targets_from_rig(
     # coordinates of each frame in the orthonormal basis Q: A E lambda^1/2 (per coordinate for a scalar basis)
     coords = A.reshape(T, K, -1)  # (T, K, c) with c = 3 (scalar) or 1 (vector)
     Atilde = np.einsum("tkc,kl->tlc", coords, E * np.sqrt(lam)).reshape(T, -1)
-    U, S, Wt = np.linalg.svd(Atilde, full_matrices=False)
-    rank = int(np.sum(S > S[0] * _RANK_TOLERANCE)) if S.size and S[0] > 0 else 0
+    # right singular vectors of Atilde from its small Gram matrix (m x m); the weights and the
+    # residual are then projections of Atilde itself, exact whatever the eigenvalues' round-off
+    s2, W = np.linalg.eigh(Atilde.T @ Atilde)
+    s2, W = np.clip(s2[::-1], 0.0, None), W[:, ::-1]
+    S = np.sqrt(s2)
+    rank = int(np.sum(s2 > s2[0] * _RANK_TOLERANCE**2)) if s2.size and s2[0] > 0 else 0
     r = _choose_r(S, rank, max_r, tol, T * n)
     # targets: M (E lambda^-1/2 (x) I) W_r ; P has shape (K, c, r)
     c = coords.shape[2]
-    P = np.einsum("kl,lcr->kcr", E / np.sqrt(lam), Wt[:r].T.reshape(lam.size, c, r))
+    to_rig = E / np.sqrt(lam)
+    P = np.einsum("kl,lcr->kcr", to_rig, W[:, :r].reshape(lam.size, c, r))
     directions = _apply_M(B, P, scalar)  # (r, n, 3)
-    weights = U[:, :r] * S[:r]
+    weights = Atilde @ W[:, :r]
 
-    # error figures
-    residual = float(np.sum(S[r:] ** 2))
-    frame_energy = np.sum((U[:, r:] * S[r:]) ** 2, axis=1)
-    P_res = np.einsum("kl,lcr->kcr", E / np.sqrt(lam), Wt[r:].T.reshape(lam.size, c, Wt.shape[0] - r))
-    vertex_energy = _vertex_energy(B, P_res * S[r:], scalar)
+    # error figures: Y = the discarded coordinates of each frame
+    q = W.shape[1] - r
+    Y = Atilde @ W[:, r:]
+    frame_energy = np.einsum("tq,tq->t", Y, Y)
+    residual = float(frame_energy.sum())
+    P_res = np.einsum("kl,lcq->kcq", to_rig, W[:, r:].reshape(lam.size, c, q))
+    vertex_energy = _vertex_energy(B, P_res, Y.T @ Y, scalar)
     max_mm = None
     if exact_max:
         # residual coefficients A_res (T, K, c): the discarded part of each frame, in the rig's own terms
-        A_res = np.einsum("tr,kcr->tkc", U[:, r:] * S[r:], P_res)
+        A_res = np.einsum("tq,kcq->tkc", Y, P_res)
         max_mm = _max_residual(B, A_res, scalar, progress)
     error = _error_dict(residual, frame_energy, vertex_energy, max_mm, T, n, rank, r)
     return _scaled(directions, weights, error)
@@ -310,13 +315,15 @@ def principal_targets(
 # ----------------------------------------------------------------------------- helpers
 
 
-def _rig_arrays(basis: object, coefficients: object) -> tuple[np.ndarray, np.ndarray, bool]:
-    """(B, A, scalar): B (K, n) or (K, n, 3) float64, A (T, K, 3) or (T, K) float64."""
+def _rig_arrays(basis: object, coefficients: object, vertex_subset: object) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(B, A, scalar): B (K, n_sub) or (K, n_sub, 3) float64, restricted first; A (T, K, 3) or (T, K) float64."""
     try:
-        B = np.asarray(basis, dtype=np.float64)
+        B = np.asarray(basis)
         A = np.asarray(coefficients, dtype=np.float64)
     except (TypeError, ValueError):
         raise InputError("basis, coefficients: expected numeric arrays") from None
+    if B.dtype.kind not in "fiu":
+        raise InputError(f"basis: expected a numeric array, got {B.dtype}")
     if B.ndim == 2:
         scalar = True
         if A.ndim != 3 or A.shape[1:] != (B.shape[0], 3):
@@ -331,6 +338,8 @@ def _rig_arrays(basis: object, coefficients: object) -> tuple[np.ndarray, np.nda
         raise InputError(f"basis: expected (K, n) scalar weights or (K, n, 3) shapes, got shape {B.shape}")
     if B.shape[0] < 1 or A.shape[0] < 1:
         raise InputError(f"basis, coefficients: expected at least one basis function and one frame, got {B.shape}, {A.shape}")
+    subset = _subset(vertex_subset, B.shape[1])
+    B = np.asarray(B if subset is None else B[:, subset], dtype=np.float64)  # restrict before the float64 copy
     if not (np.all(np.isfinite(B)) and np.all(np.isfinite(A))):
         raise InputError("basis, coefficients: expected finite values, got NaN or infinity")
     return B, A, scalar
@@ -386,16 +395,16 @@ def _apply_M(B: np.ndarray, P: np.ndarray, scalar: bool) -> np.ndarray:
     return np.einsum("kr,kic->ric", P[:, 0], B, optimize=True)
 
 
-def _vertex_energy(B: np.ndarray, P: np.ndarray, scalar: bool) -> np.ndarray:
-    """Per vertex, sum over frames of the squared residual: the rows of ``M P`` squared, summed."""
+def _vertex_energy(B: np.ndarray, P: np.ndarray, YtY: np.ndarray, scalar: bool) -> np.ndarray:
+    """Per vertex, the sum over frames of its squared residual ``M P Y^T``: ``m_i^T (P Y^T Y P^T) m_i``."""
     K, c, q = P.shape
     if q == 0:
         return np.zeros(B.shape[1])
+    X = P.reshape(K * c, q)
+    H = (X @ YtY @ X.T).reshape(K, c, K, c)
     if scalar:
-        H = np.einsum("kcq,lcq->kl", P, P)  # sum over coordinates of (P P^T) blocks
-        return np.einsum("ki,kl,li->i", B, H, B, optimize=True)
-    H = P[:, 0] @ P[:, 0].T  # (K, K)
-    return np.einsum("kic,kl,lic->i", B, H, B, optimize=True)
+        return np.einsum("ki,kl,li->i", B, np.einsum("kclc->kl", H), B, optimize=True)
+    return np.einsum("kic,kl,lic->i", B, H[:, 0, :, 0], B, optimize=True)
 
 
 def _max_residual(B: np.ndarray, A_res: np.ndarray, scalar: bool, progress: bool, block: int = 256) -> float:

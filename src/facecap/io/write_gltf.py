@@ -122,7 +122,7 @@ def write_gltf(
         meshoptimizer's vertex and index codecs, no quantisation), through
         the ``meshopt`` binding; default False. The file then needs a viewer
         with a meshopt decoder (three.js ``GLTFLoader.setMeshoptDecoder``,
-        Blender 3.1+, Babylon.js, gltfpack).
+        Babylon.js, gltfpack); Blender 5.0.1's importer refuses it.
     progress : bool, optional
         Show a tqdm progress bar over the buffers; default False.
     extras : dict or None
