@@ -176,6 +176,9 @@ def _add_output_options(p: argparse.ArgumentParser) -> None:
                    help=f"most morph targets of the glTF export (principal components beyond) [{DEFAULT_GLTF_TARGETS}]")
     p.add_argument("--review-vertices", type=int, default=DEFAULT_REVIEW_VERTICES,
                    help=f"most vertices of the glTF review mesh (decimated beyond) [{DEFAULT_REVIEW_VERTICES}]")
+    p.add_argument("--usd-shapes", default="auto", type=_usd_shapes_option,
+                   help="blend shapes of the USD rig: exact, a count (principal components), or auto "
+                        "(exact up to 1 GiB of shapes) [auto]")
 
 
 def _output_options(args: argparse.Namespace) -> dict:
@@ -188,8 +191,47 @@ def _output_options(args: argparse.Namespace) -> dict:
         "exports": parse_export_formats(args.export),
         "write_vertices": not args.no_vertices,
         "rig_precision": args.rig_precision,
-        "export_options": {"gltf_targets": args.gltf_targets, "review_vertices": args.review_vertices},
+        "export_options": {"gltf_targets": args.gltf_targets, "review_vertices": args.review_vertices,
+                           "usd_shapes": args.usd_shapes},
     }
+
+
+def _usd_shapes_option(text: str) -> str | int:
+    if text in ("auto", "exact"):
+        return text
+    try:
+        count = int(text)
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise argparse.ArgumentTypeError(f"expected 'auto', 'exact' or a positive count, got {text!r}")
+    return count
+
+
+def _add_view(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("view", help="review a result in the browser (writes review.html and report.html, serves them)")
+    p.add_argument("result", help="a facecap result folder")
+    p.add_argument("--truth", default=None, help="ground truth .npz: show the error heat map")
+    p.add_argument("--frame", choices=("auto", "world", "stabilized"), default="auto",
+                   help="how a stabilised result meets the truth, as for evaluate [auto]")
+    p.add_argument("--port", type=int, default=0, help="localhost port [a free one]")
+    p.add_argument("--no-serve", action="store_true", help="write the pages and stop")
+    p.set_defaults(func=_cmd_view)
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    from .report.review_page import serve
+    from .report.view_result import view_result
+
+    if not 0 <= args.port <= 65535:
+        raise FacecapError(f"--port: expected 0..65535, got {args.port}")
+    page = view_result(args.result, truth=args.truth, frame=args.frame, progress=not args.quiet)
+    if args.no_serve:
+        if not args.quiet:
+            print(f"wrote {page} and {page.with_name('report.html')}")
+        return 0
+    serve(page.parent, port=args.port, page=page.name, block=True, quiet=args.quiet)
+    return 0
 
 
 def _add_export(sub: argparse._SubParsersAction) -> None:
@@ -201,6 +243,8 @@ def _add_export(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, help="folder to write into [the result folder]")
     p.add_argument("--gltf-targets", type=int, default=None, help="most morph targets of the glTF [64]")
     p.add_argument("--review-vertices", type=int, default=None, help="most vertices of the glTF review mesh [100000]")
+    p.add_argument("--usd-shapes", default=None, type=_usd_shapes_option,
+                   help="blend shapes of the USD rig: exact, a count, or auto [auto]")
     p.set_defaults(func=_cmd_export)
 
 
@@ -210,8 +254,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
     formats = parse_export_formats(args.format)
     result = read_result(args.result)
-    options = {k: v for k, v in (("gltf_targets", args.gltf_targets), ("review_vertices", args.review_vertices))
-               if v is not None}
+    options = {k: v for k, v in (("gltf_targets", args.gltf_targets), ("review_vertices", args.review_vertices),
+                                 ("usd_shapes", args.usd_shapes)) if v is not None}
     report = export_result(result, formats, out_dir=args.out, progress=not args.quiet, **options)
     if not args.quiet:
         for fmt, entry in report.items():
@@ -386,6 +430,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_info(sub)
     _add_evaluate(sub)
     _add_export(sub)
+    _add_view(sub)
     _add_scan_commands(sub)
     _add_demo(sub)
     for action in sub.choices.values():  # let -q/--quiet also follow the command

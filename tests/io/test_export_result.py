@@ -26,6 +26,7 @@ def _glb_frames(path) -> tuple[np.ndarray, dict]:
     offsets = np.stack([read_accessor(gltf, blob, t["POSITION"]) for t in primitive.targets]).astype(np.float64)
     sampler = gltf.animations[0].samplers[gltf.animations[0].channels[0].sampler]
     w = read_accessor(gltf, blob, sampler.output).reshape(-1, offsets.shape[0]).astype(np.float64)
+    assert w.min() >= 0.0 and w.max() <= 1.0  # the range Blender plays without clamping
     return 1000.0 * (base[None] + np.einsum("tj,jic->tic", w, offsets)), gltf.asset.extras
 
 
@@ -67,9 +68,15 @@ def test_compact_animate_exports_play_the_result(capture_case, tmp_path):
 
 
 def _first_frame_base(out) -> np.ndarray:
-    """The GLB's base positions in mm (the rest shape at its written vertices)."""
+    """The GLB's rest shape in mm at its written vertices: the base mesh plus the targets at the recorded rest weights."""
     gltf, blob = load(out / "performance.glb")
-    return 1000.0 * read_accessor(gltf, blob, gltf.meshes[0].primitives[0].attributes.POSITION).astype(np.float64)
+    primitive = gltf.meshes[0].primitives[0]
+    rest = read_accessor(gltf, blob, primitive.attributes.POSITION).astype(np.float64)
+    weights = gltf.asset.extras["facecap"]["rest_weights"]
+    assert len(weights) == len(primitive.targets)
+    for w, target in zip(weights, primitive.targets):
+        rest += w * read_accessor(gltf, blob, target["POSITION"])
+    return 1000.0 * rest
 
 
 def test_fewer_targets_state_the_error_they_leave(tmp_path):
@@ -123,3 +130,26 @@ def test_info_describes_a_compact_result(capture_case, tmp_path, capsys):
     assert main(["info", str(out), "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["frames"] == 40 and info["frames_in"].startswith("rig/ (vertex-weights, 30 x 400, int16, error bound")
+
+
+def test_view_writes_the_pages_with_the_true_error(capture_case, tmp_path, capsys):
+    from facecap.report import evaluate_result
+
+    out = tmp_path / "out"
+    _animate(capture_case, out, "--no-vertices")
+    assert main(["view", str(out), "--truth", str(capture_case.truth_path), "--no-serve"]) == 0
+    assert "review.html" in capsys.readouterr().out
+    assert (out / "performance.glb").is_file() and (out / "review.html").is_file()
+    assert 'href="review.html"' in (out / "report.html").read_text()
+    from facecap.report.view_result import _error_rows
+
+    rows, frames = _error_rows(read_result(out), capture_case.truth_path, "auto", out / "performance.glb", 7)
+    truth = evaluate_result(capture_case.truth_path, out)
+    assert len(frames) == 7 and frames[0] == 0 and frames[-1] == 39
+    # the capture case has no UVs: the GLB's vertices are the scan's, each once
+    np.testing.assert_allclose(rows.mean(axis=1), np.asarray(truth.per_frame_mean_mm)[frames], rtol=1e-5)
+
+    (tmp_path / "not_a_result").mkdir()
+    assert main(["view", str(tmp_path / "not_a_result"), "--no-serve"]) == 2
+    assert "not a finished facecap result" in capsys.readouterr().err
+    assert list((tmp_path / "not_a_result").iterdir()) == []

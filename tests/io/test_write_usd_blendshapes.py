@@ -31,6 +31,7 @@ def usdskel_points(path, frames) -> tuple[list[np.ndarray], list[np.ndarray]]:
     points, transforms = [], []
     for t in frames:
         weights = skeleton.GetAnimQuery().ComputeBlendShapeWeights(t)
+        assert min(weights) >= 0.0 and max(weights) <= 1.0  # the range Blender plays without clamping
         if mapper is not None and not mapper.IsNull() and not mapper.IsIdentity():
             weights = mapper.Remap(weights)
         sub, shape_index, sub_index = shapes.ComputeSubShapeWeights(weights)

@@ -25,7 +25,9 @@ In the order a user meets them:
   gives its frames lazily from ``vertices.npy`` or the rig;
   :func:`export_result` (``export_result.py``) writes a finished result to
   artists' formats, among them :func:`write_usd_blendshapes`
-  (``write_usd_blendshapes.py``): the rig as UsdSkel blend shapes.
+  (``write_usd_blendshapes.py``): the rig as UsdSkel blend shapes, and
+  :func:`write_gltf_review` (``gltf_review.py``): the glTF review file; both keep
+  their weights in [0, 1] (:func:`to_unit_range`, ``weight_ranges.py``).
 - :func:`write_scan_plan` / :func:`read_scan_plan` (``scan_plan.py``) and
   :func:`write_registered_scans` / :func:`read_registered_scans`
   (``registered_scans.py``): the files of the scan workflow (``plan.json``, the
@@ -56,6 +58,8 @@ from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, read_rig, write_r
 from .read_result import MESH_FILE, Result, read_result
 from .write_usd_blendshapes import (DEFAULT_BLENDSHAPE_TOLERANCE_MM, DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES,
                                     write_usd_blendshapes)
+from .weight_ranges import UnitRangeWeights, to_unit_range
+from .gltf_review import write_gltf_review
 from .export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES, export_result, parse_export_formats
 
 __all__ = [
@@ -93,6 +97,9 @@ __all__ = [
     "DEFAULT_USD_COMPONENTS",
     "USD_EXACT_MAX_BYTES",
     "export_result",
+    "to_unit_range",
+    "UnitRangeWeights",
+    "write_gltf_review",
     "parse_export_formats",
     "DEFAULT_GLTF_TARGETS",
     "DEFAULT_REVIEW_VERTICES",

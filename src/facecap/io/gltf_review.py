@@ -12,7 +12,10 @@ gltf``) is what a browser or a DCC tool can play without the full frames:
    the best ``max_targets`` in the least-squares sense, with the error they
    leave computed exactly and returned (it goes into ``performance.json``'s
    ``exports_report`` and the file's ``asset.extras``);
-3. :func:`facecap.io.write_gltf` writes them in metres with the weights
+3. the weights are moved into [0, 1] (:mod:`facecap.io.weight_ranges`), the
+   range Blender plays without clamping; the base mesh is the shape at
+   all-zero weights, the rest shape at ``asset.extras.facecap.rest_weights``;
+4. :func:`facecap.io.write_gltf` writes them in metres with the weights
    animation at the take's rate and the markers as animated nodes.
 """
 
@@ -24,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from .read_result import Result
+from .weight_ranges import to_unit_range
 
 __all__ = ["write_gltf_review"]
 
@@ -82,14 +86,18 @@ def write_gltf_review(
         found = principal_targets(blocks, result.mesh.vertices, n_frames=result.n_frames, vertex_subset=subset,
                                   max_targets=max_targets, progress=progress)
         base = review.mesh
+    # weights in [0, 1]: Blender's glTF importer widens a shape key's range by the first keyframe only
+    unit = to_unit_range(found.targets, found.weights)
+    base = base.with_vertices(base.vertices + unit.base_offset)
     markers = None if result.markers is None else result.markers * to_mm
     error = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in found.error.items()}
     info = write_gltf(
-        path, base, targets=found.targets, weights=found.weights, rate=result.rate,
+        path, base, targets=unit.targets, weights=unit.weights, rate=result.rate,
         markers=markers, marker_labels=list(result.marker_labels) or None,
         compress=compress, progress=progress,
         extras={"facecap": {"result": str(result.path.name), "method": result.info.get("method"),
                             "review_vertices": int(subset.size), "scan_vertices": result.n_vertices,
+                            "rest_weights": unit.rest_weights.tolist(),
                             "principal_component_error_mm": error}},
     )
     return {

@@ -17,6 +17,8 @@ Layout of a finished folder (see ``docs/output_format.md``):
   frames through :func:`facecap.io.read_result`, ``performance_rig.usdc``
   (UsdSkel blend shapes), ``performance.glb``, ``.mdd``, ``.pc2``, ``.abc``
   (:func:`facecap.io.export_result`).
+- ``report.html``: the run's figures, plots and pictures in one page, linking
+  ``review.html`` (the result played in the browser) when a glTF was written.
 - whatever else the caller adds (``report.json``, pictures).
 
 Everything is written into a hidden staging folder beside the destination and
@@ -332,12 +334,24 @@ class PerformanceWriter:
             export_result(self.staging, later, progress=self.export_options.pop("progress", False),
                           skip_streamed=True, **self.export_options)
             info = json.loads(info_path.read_text())
+        self._write_pages()
         info["files"] = {str(p.relative_to(self.staging)): p.stat().st_size
                          for p in sorted(self.staging.rglob("*")) if p.is_file() and p.name != _MARKER_FILE}
         info_path.write_text(json.dumps(info, indent=2, default=_json_default))
         self._folder.__exit__(None, None, None)
         self._finished = True
         return self.out_dir
+
+    def _write_pages(self) -> None:
+        """``report.html`` of the run, and ``review.html`` when the run wrote a glTF (the browser review)."""
+        from ..report.review_page import write_review_page
+        from ..report.view_result import write_run_report
+
+        glb = self.staging / "performance.glb"
+        if glb.is_file():
+            write_review_page(self.staging / "review.html", glb, title=f"facecap: {self.out_dir.name}",
+                              rate=self.rate, n_frames=self.n_frames)
+        write_run_report(self.staging)
 
     def abort(self) -> None:
         """Discard everything written so far."""

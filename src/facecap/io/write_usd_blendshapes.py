@@ -7,12 +7,16 @@ Layout of the stage::
     /Head/Skeleton     Skeleton (no joints: the rig is blend shapes only),
                        ``skel:animationSource`` -> /Head/Animation
     /Head/Animation    SkelAnimation: ``blendShapes`` and time-sampled ``blendShapeWeights``
-    /Head/Face         Mesh: the rest points, the scan's polygons and UVs,
-                       ``skel:blendShapes`` / ``skel:blendShapeTargets``
+    /Head/Face         Mesh: the points at all-zero weights, the scan's polygons
+                       and UVs, ``skel:blendShapes`` / ``skel:blendShapeTargets``,
+                       ``customData["facecap:restWeights"]`` (the weights of the rest shape)
     /Head/Face/s0000.. BlendShape: ``offsets`` and ``pointIndices``
 
 Frame k is time code k at the take's rate, as in ``performance.usdc``; points
-are in the result's unit with ``metersPerUnit`` set to match.
+are in the result's unit with ``metersPerUnit`` set to match. Every weight
+lies in [0, 1] (:mod:`facecap.io.weight_ranges`: Blender clamps to that range),
+so the mesh's own points are the shape at all-zero weights; the rest shape is at
+``restWeights``.
 
 The thin shell's rig has one scalar weight per marker and vertex, so it
 becomes three shapes per marker (that marker moved along x, y and z; see
@@ -47,6 +51,7 @@ from ..structures import Mesh
 from ..units import mm_per_unit
 from ._atomic import atomic_path
 from .result_rig import ResultRig
+from .weight_ranges import to_unit_range
 
 __all__ = ["write_usd_blendshapes", "DEFAULT_BLENDSHAPE_TOLERANCE_MM", "USD_EXACT_MAX_BYTES", "DEFAULT_USD_COMPONENTS"]
 
@@ -55,6 +60,9 @@ DEFAULT_BLENDSHAPE_TOLERANCE_MM = 1e-4
 
 USD_EXACT_MAX_BYTES = 1 << 30
 """Largest exact set of blend shapes (``12 m n`` bytes) the automatic choice writes; principal components beyond."""
+
+MAX_ERROR_PASS_FLOPS = 2e11
+"""Largest pass (frames x vertices x rig elements) the default computes the exact maximum error with."""
 
 DEFAULT_USD_COMPONENTS = 48
 """Blend shapes of a principal-component USD rig (the size bar at 700k vertices: rig + USD under 1/100 of the frames)."""
@@ -71,7 +79,7 @@ def write_usd_blendshapes(
     head_motion: np.ndarray | None = None,
     tolerance_mm: float = DEFAULT_BLENDSHAPE_TOLERANCE_MM,
     max_shapes: int | None = None,
-    exact_max_error: bool = True,
+    exact_max_error: bool | None = None,
     progress: bool = False,
 ) -> dict[str, Any]:
     """Write ``rig`` as UsdSkel blend shapes with their weights animated at ``rate``.
@@ -94,9 +102,11 @@ def write_usd_blendshapes(
         Write at most this many shapes: the take's principal components when
         the exact rig needs more (the error they leave is returned); default
         None: the exact shapes.
-    exact_max_error : bool, default True
+    exact_max_error : bool, optional
         With principal components, also compute the largest vertex error over
-        the take (one pass over it; the RMS figures are always exact).
+        the take (one pass over it, ``T n m`` multiply-adds; the RMS figures
+        are always exact). Default None: where that is at most
+        :data:`MAX_ERROR_PASS_FLOPS` (a few seconds), else ``max_mm`` is None.
     progress : bool, default False
 
     Returns
@@ -136,7 +146,10 @@ def write_usd_blendshapes(
         vector = rig.kind == "shapes"
         principal = principal_targets_from_rig(rig.dense_basis() * (to_mm if vector else 1),
                                                rig.coefficients * (1 if vector else to_mm),
-                                               max_targets=int(max_shapes), exact_max=exact_max_error,
+                                               max_targets=int(max_shapes),
+                                               exact_max=(rig.n_frames * rig.n_vertices * exact_count
+                                                          <= MAX_ERROR_PASS_FLOPS) if exact_max_error is None
+                                               else exact_max_error,
                                                progress=progress)
         shapes = principal.targets / to_mm
         weights = principal.weights
@@ -146,7 +159,9 @@ def write_usd_blendshapes(
         shapes, names = rig.shapes()
         weights = rig.shape_weights()
     m, T = shapes.shape[0], rig.n_frames
-    peak_weight = np.abs(weights).max(axis=0)  # (m,)
+    # weights in [0, 1]: Blender's USD importer keeps every shape key's range at [0, 1] and clamps
+    unit = to_unit_range(shapes, weights)
+    shapes, weights = unit.targets, unit.weights
     share = tolerance / m if tolerance > 0 else 0.0
     tokens = [_token(name, k) for k, name in enumerate(names)]
 
@@ -173,8 +188,9 @@ def write_usd_blendshapes(
     face.CreateFaceVertexCountsAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(sizes, np.int32)))
     face.CreateFaceVertexIndicesAttr(Vt.IntArray.FromNumpy(np.ascontiguousarray(indices, np.int32)))
     face.CreateSubdivisionSchemeAttr("none")
-    rest = np.ascontiguousarray(rig.rest, np.float32)
+    rest = np.ascontiguousarray(rig.rest + unit.base_offset, np.float32)  # the shape at all-zero weights
     face.CreatePointsAttr(Vt.Vec3fArray.FromNumpy(rest))
+    face.GetPrim().SetCustomDataByKey("facecap:restWeights", Vt.FloatArray.FromNumpy(unit.rest_weights.astype(np.float32)))
     face.CreateExtentAttr(Vt.Vec3fArray([Gf.Vec3f(*map(float, rest.min(0))), Gf.Vec3f(*map(float, rest.max(0)))]))
     if mesh.uvs is not None:
         face_varying = mesh.uv_indices is not None
@@ -192,7 +208,7 @@ def write_usd_blendshapes(
     targets = []
     for k in tqdm(range(m), desc="USD blend shapes", unit="shape", disable=not progress, leave=False):
         offsets = shapes[k]
-        reach = np.abs(offsets).max(axis=1) * peak_weight[k]
+        reach = np.abs(offsets).max(axis=1)  # its weights lie in [0, 1]
         keep = np.flatnonzero(reach > share) if share > 0 else np.arange(rig.n_vertices)
         shape = UsdSkel.BlendShape.Define(stage, f"{_FACE}/{tokens[k]}")
         shape.CreateOffsetsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(offsets[keep], np.float32)))

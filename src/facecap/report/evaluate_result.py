@@ -12,7 +12,7 @@ from ..io.read_result import read_result
 from ..units import mm_per_unit
 from .evaluate_performance import DenseError, evaluate_performance
 
-__all__ = ["evaluate_result", "read_truth"]
+__all__ = ["evaluate_result", "read_truth", "result_and_truth_mm"]
 
 
 def read_truth(path: str | Path) -> dict[str, np.ndarray]:
@@ -73,6 +73,22 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: st
     InputError
         If frame or vertex counts differ.
     """
+    result_mm, truth_mm, truth = result_and_truth_mm(truth_path, result_dir, frame=frame)
+    names = [str(s) for s in truth["region_names"]] if "region_names" in truth else None
+    labels = truth.get("region_labels")
+    return evaluate_performance(result_mm, truth_mm, region_labels=labels, region_names=names)
+
+
+def result_and_truth_mm(truth_path: str | Path, result_dir: str | Path, *,
+                        frame: str = "auto") -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """The result's frames and the truth's, in mm, in the frame :func:`evaluate_result` compares them in.
+
+    Returns
+    -------
+    result_mm, truth_mm : (T, n, 3) float32 arrays
+    truth : dict
+        The ground-truth file's arrays (:func:`read_truth`).
+    """
     if frame not in ("auto", "world", "stabilized"):
         raise InputError(f"frame: expected 'auto', 'world' or 'stabilized', got {frame!r}")
     truth = read_truth(truth_path)
@@ -109,9 +125,7 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: st
         # head_motion.npy is absolute: where the face is at each frame, in the scan's coordinates at the
         # rest frame's pose (its rest-frame entry is the identity only to within the capture's noise)
         result_mm = _moved(np.asarray(result_mm, dtype=np.float32), motion)
-    names = [str(s) for s in truth["region_names"]] if "region_names" in truth else None
-    labels = truth.get("region_labels")
-    return evaluate_performance(result_mm, truth_mm, region_labels=labels, region_names=names)
+    return np.asarray(result_mm, dtype=np.float32), truth_mm, truth
 
 
 def _moved(vertices: np.ndarray, pose: np.ndarray) -> np.ndarray:
