@@ -80,7 +80,7 @@ def _first_frame_base(out) -> np.ndarray:
 
 
 def test_fewer_targets_state_the_error_they_leave(tmp_path):
-    from conftest import curved_grid
+    from analytic_case import curved_grid
     from facecap.blendshapes import write_blended_performance
     from facecap.structures import Mesh
 

@@ -14,7 +14,7 @@ from facecap.io import (ResultRig, export_result, read_correspondence, read_mark
                         write_usd_blendshapes)
 from facecap.structures import Mesh
 
-from conftest import curved_grid
+from analytic_case import curved_grid
 
 
 def usdskel_points(path, frames) -> tuple[list[np.ndarray], list[np.ndarray]]:
