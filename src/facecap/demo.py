@@ -53,6 +53,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     from .io.read_mesh import read_mesh
     from .report import MeshPanel, evaluate_performance, plot_series, render_mesh, render_side_by_side
     from .report.evaluate_result import evaluate_result, read_truth
+    from .report.view_result import view_result
     from .synth.generate_performance import generate_performance
     from .synth.ict_sample import load_ict_sample
     from .synth.write_synthetic_case import write_synthetic_case
@@ -78,10 +79,11 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FacecapWarning)  # head-band markers not in the map: expected
             result = animate_scan(
-                scan, take, corr, stage / "animation", stabilize=True, exports=("usd",), progress=progress,
+                scan, take, corr, stage / "animation", stabilize=True, exports=("usd", "gltf"), progress=progress,
                 extra_metadata={"map": "inputs/map.json"},
             )
         shell_error = evaluate_result(files.truth, result.out_dir)
+        view_result(result.out_dir, truth=files.truth)  # review.html with the error heat map, report.html
 
         # --- the baseline: the same markers deforming the scan by the RBF warp alone
         vertices = np.load(result.out_dir / "vertices.npy", mmap_mode="r")
@@ -165,8 +167,11 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
             *scan_lines["lines"],
             *real_lines["lines"],
         ]
-    lines.append(f"wrote {out}/ in {time.perf_counter() - t_start:.1f} s: animation/ (vertices.npy, performance.usdc), "
-                 f"scans/ (plan, scans, bases, blend), animface/, pictures/, {_DEMO_MARKER}")
+    lines.append(f"wrote {out}/ in {time.perf_counter() - t_start:.1f} s: animation/ (vertices.npy, rig/, "
+                 f"performance_rig.usdc, performance.glb, report.html), scans/ (plan, scans, bases, blend), animface/, "
+                 f"pictures/, {_DEMO_MARKER}")
+    lines.append(f"look at it: facecap view {out}/animation --truth {out}/inputs/truth.npz "
+                 "(the take in the browser, with its error against the truth)")
     return lines
 
 
