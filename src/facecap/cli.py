@@ -88,10 +88,11 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     )
     if not args.quiet:
         t = result.report["timings"]
+        speed = (f"{t['frames_per_second']:.0f} frames/s" if t.get("frames_per_second")
+                 else "no frame computed: the rig is the result")
         print(
             f"wrote {result.out_dir}: {result.report['n_frames']} frames x {result.report['n_vertices']} vertices "
-            f"from {result.report['n_markers']} markers (set-up {t['shell_setup_s']:.1f} s, "
-            f"{t['frames_per_second']:.0f} frames/s)"
+            f"from {result.report['n_markers']} markers (set-up {t['shell_setup_s']:.1f} s, {speed})"
         )
         if result.report["warp_outliers"]:
             print(f"check these markers' scan vertices (large leave-one-out warp residual): "
@@ -373,9 +374,7 @@ def _cmd_blend(args: argparse.Namespace) -> int:
 
 
 def _blend_options(args: argparse.Namespace) -> dict:
-    options = _output_options(args)
-    options.pop("export_options")  # the blend's rig is small: its glTF is exact (one target per basis)
-    return options
+    return _output_options(args)
 
 
 def _cmd_scans_pipeline(args: argparse.Namespace) -> int:

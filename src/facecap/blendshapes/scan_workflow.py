@@ -228,6 +228,7 @@ def blend_take(
     marker_unit: str | None = None,
     write_vertices: bool = True,
     rig_precision: str = "float32",
+    export_options: dict[str, Any] | None = None,
     progress: bool = True,
 ) -> dict[str, Any]:
     """Rebuild every frame of a take from the bases (eq. 12) and write it like ``facecap animate``.
@@ -273,7 +274,7 @@ def blend_take(
     write_blended_performance(
         out_dir, folder["template"], folder["bases"], weights, rate=take.rate,
         output_from_bases=folder["output_from_mocap"], head_motion=head_motion, exports=exports, progress=progress,
-        write_vertices=write_vertices, rig_precision=rig_precision,
+        write_vertices=write_vertices, rig_precision=rig_precision, export_options=export_options,
         metadata={"source_files": {"bases": str(bases_dir), "markers": str(markers_path)},
                   "rest_frame": int(conditioning.get("rest_frame", 0)), "planned_frames": frames,
                   "markers": list(labels)},

@@ -379,7 +379,8 @@ def animate_scan(
                           batch_frames=batch_frames, head_pose=head_pose, progress=progress, desc="animate")
         np.save(writer.path("markers.npy"), (face_markers * to_unit).astype(np.float32))
         timings["deform_and_write_s"] = time.perf_counter() - t
-        timings["frames_per_second"] = T / max(timings["deform_and_write_s"], 1e-9)
+        # frames computed and written per second; None when nothing per frame was asked for
+        timings["frames_per_second"] = T / max(timings["deform_and_write_s"], 1e-9) if writer.needs_frames else None
         timings["total_s"] = time.perf_counter() - t0
 
         if head_pose is not None:
