@@ -312,7 +312,8 @@ def exported(blender: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[st
                          mesh_cache={"filepath": str(folder / f"performance.{cache_format.lower()}"),
                                      "cache_format": cache_format, **MESH_CACHE_SETTINGS}))
     truth = {job["name"]: frames for job in jobs}
-    truth["usd"] = world
+    for moving in ("usd", "gltf", "alembic"):  # the head motion is their root's animated transform
+        truth[moving] = world
     spacing_mm = float(np.linalg.norm(scan.vertices[1] - scan.vertices[0]))
     return _run_probe(blender, out, jobs, truth, spacing_mm=spacing_mm, result=result)
 
@@ -507,6 +508,6 @@ def test_usd_blendshapes_with_head_motion(imported: dict) -> None:
 
 @pytest.mark.parametrize("name", ["usd", "gltf", "obj", "mdd", "pc2", "alembic"])
 def test_facecap_export_in_blender(exported: dict, name: str) -> None:
-    """Each file `facecap export` writes shows the result's frames in Blender (USD: with its head motion)."""
+    """Each file `facecap export` writes shows the result's frames in Blender (USD, glTF, Alembic: with its head motion)."""
     r = _result(exported, name)
     _check_positions(r, keeps_order=name != "gltf")

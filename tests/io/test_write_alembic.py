@@ -189,3 +189,28 @@ def test_importing_the_writer_does_not_import_alembic3d() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["False", "False"]
+
+
+def test_head_motion_is_the_head_xform_per_frame(tmp_path: Path) -> None:
+    from scipy.spatial.transform import Rotation
+
+    mesh = _polygon_mesh()
+    frames = _take(mesh)
+    T = frames.shape[0]
+    motion = np.tile(np.eye(4), (T, 1, 1))
+    motion[:, :3, :3] = Rotation.from_rotvec(np.outer(np.linspace(0, 0.3, T), [0.2, 1.0, 0.1])).as_matrix()
+    motion[:, :3, 3] = np.outer(np.arange(T), [1.0, -2.0, 3.0])
+    path = write_alembic(tmp_path / "moving.abc", mesh, [(0, frames)], n_frames=T, rate=24.0, head_motion=motion,
+                         unit_scale=0.001)
+    archive = Abc.IArchive(str(path))
+    head = AbcGeom.IXform(archive.getTop().getChild("Head"), Abc.WrapExistingFlag.kWrapExisting).getSchema()
+    assert head.getNumSamples() == T
+    for k in (0, T // 2, T - 1):
+        sample = head.getValue(Abc.ISampleSelector(k / 24.0))
+        row_major = np.array([[sample.getMatrix()[i][j] for j in range(4)] for i in range(4)])
+        expected = motion[k].copy()
+        expected[:3, 3] *= 0.001  # the unit scale applies to the translation as to the points
+        np.testing.assert_allclose(row_major.T, expected, atol=1e-12)
+    with pytest.raises(InputError, match="head_motion"):
+        write_alembic(tmp_path / "bad.abc", mesh, [(0, frames)], n_frames=T, rate=24.0, head_motion=motion[:2])
+    assert not (tmp_path / "bad.abc").exists()

@@ -67,7 +67,7 @@ def assert_valid(path: Path) -> dict:
 
 
 _COMPONENT = {5126: np.float32, 5125: np.uint32, 5123: np.uint16}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
 
 
 def read_accessor(gltf: pygltflib.GLTF2, blob: bytes, index: int) -> np.ndarray:
@@ -291,3 +291,64 @@ def test_gpu_budget_is_enforced(tmp_path: Path, monkeypatch: pytest.MonkeyPatch)
     with pytest.raises(InputError, match="review_mesh"):
         write_gltf(tmp_path / "big.glb", mesh, targets=np.zeros((5, mesh.n_vertices, 3)), rate=RATE)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["ok.glb"]
+
+
+def _rigid_motion(n_frames: int, seed: int = 3) -> np.ndarray:
+    """Head turns up to ~20 degrees (a half turn of the quaternion sign on the way) and translations in mm."""
+    from scipy.spatial.transform import Rotation
+
+    t = np.linspace(0, 1, n_frames)
+    rotvec = np.outer(np.sin(2 * np.pi * t), [0.1, 0.35, -0.05])
+    M = np.tile(np.eye(4), (n_frames, 1, 1))
+    M[:, :3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    M[:, :3, 3] = np.outer(np.sin(np.pi * t), [12.0, -5.0, 30.0]) + [0.0, 1500.0, 0.0]
+    return M
+
+
+def test_head_motion_moves_the_face_and_markers_in_the_world(tmp_path: Path) -> None:
+    from scipy.spatial.transform import Rotation
+
+    mesh = seamed_grid()
+    targets, weights = known_take(mesh)
+    motion = _rigid_motion(len(weights))
+    markers = mesh.vertices[None, :4] + np.zeros((len(weights), 1, 1))
+    path = tmp_path / "moving.glb"
+    info = write_gltf(path, mesh, targets=targets, weights=weights, rate=RATE, markers=markers, head_motion=motion)
+    assert_valid(path)
+    gltf, blob = load(path)
+    head = next(i for i, node in enumerate(gltf.nodes) if node.name == "Head")
+    assert gltf.scenes[0].nodes == [head] and 0 in gltf.nodes[head].children
+    paths = {}
+    for channel in gltf.animations[0].channels:
+        if channel.target.node == head:
+            sampler = gltf.animations[0].samplers[channel.sampler]
+            assert sampler.interpolation == "LINEAR"
+            paths[channel.target.path] = read_accessor(gltf, blob, sampler.output)
+    translation_m = paths["translation"].reshape(-1, 3)
+    q = paths["rotation"].reshape(-1, 4)
+    assert np.all(np.sum(q[1:] * q[:-1], axis=1) > 0)  # neighbouring quaternions on the same side: no flip
+    R = Rotation.from_quat(q).as_matrix()
+    np.testing.assert_allclose(R, motion[:, :3, :3], atol=1e-6)
+    np.testing.assert_allclose(translation_m * 1000.0, motion[:, :3, 3], atol=1e-3)  # float32 metres at 1.5 m
+    # the face in the world at frame t: M_t (base + sum_j w_j targets_j)
+    source = info["vertex_source"]
+    primitive = gltf.meshes[0].primitives[0]
+    base = read_accessor(gltf, blob, primitive.attributes.POSITION).astype(np.float64)
+    offsets = np.stack([read_accessor(gltf, blob, t["POSITION"]) for t in primitive.targets]).astype(np.float64)
+    local_mm = 1000.0 * (base[None] + np.einsum("tj,jic->tic", weights, offsets))
+    world_mm = np.einsum("tij,tnj->tni", R, local_mm) + translation_m[:, None] * 1000.0
+    expected = np.einsum("tij,tnj->tni", motion[:, :3, :3], mesh.vertices[None] + np.einsum("tj,jic->tic", weights, targets)) \
+        + motion[:, None, :3, 3]
+    np.testing.assert_allclose(world_mm, expected[:, source], atol=2e-3)
+
+
+def test_head_motion_must_be_rigid(tmp_path: Path) -> None:
+    mesh = seamed_grid()
+    targets, weights = known_take(mesh)
+    motion = _rigid_motion(len(weights))
+    motion[3, :3, :3] *= 1.1  # a scale is not a head motion
+    with pytest.raises(InputError, match="rigid"):
+        write_gltf(tmp_path / "bad.glb", mesh, targets=targets, weights=weights, rate=RATE, head_motion=motion)
+    with pytest.raises(InputError, match="head_motion: 5 frames"):
+        write_gltf(tmp_path / "bad.glb", mesh, targets=targets, weights=weights, rate=RATE, head_motion=motion[:5])
+    assert list(tmp_path.iterdir()) == []

@@ -19,8 +19,9 @@ format      file                               what
 
 Point caches, Alembic and USD carry the result's unit (the scan's); glTF is in
 metres, its unit. The head motion of a stabilised result is the root's
-transform in USD; the other formats hold the stabilised face (the head motion
-stays in ``head_motion.npy``).
+animated transform in USD, glTF and Alembic (``/Head``); point caches and
+OBJ/PLY frames hold the stabilised face (a point cache has no transform: the
+head motion stays in ``head_motion.npy``).
 """
 
 from __future__ import annotations
@@ -234,7 +235,7 @@ def _export_abc(result: Result, target: Path, *, batch_frames: int, progress: bo
     from .write_alembic import write_alembic
 
     path = write_alembic(target / "performance.abc", result.mesh, _progress(result, batch_frames, progress, "Alembic"),
-                         n_frames=result.n_frames, rate=result.rate)
+                         n_frames=result.n_frames, rate=result.rate, head_motion=result.head_motion)
     return {"files": _sizes(Path(path))}
 
 

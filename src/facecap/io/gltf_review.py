@@ -16,7 +16,8 @@ gltf``) is what a browser or a DCC tool can play without the full frames:
    range Blender plays without clamping; the base mesh is the shape at
    all-zero weights, the rest shape at ``asset.extras.facecap.rest_weights``;
 4. :func:`facecap.io.write_gltf` writes them in metres with the weights
-   animation at the take's rate and the markers as animated nodes.
+   animation at the take's rate, the markers as animated nodes and, for a
+   stabilised result, the head motion as the animation of a root node.
 """
 
 from __future__ import annotations
@@ -90,10 +91,14 @@ def write_gltf_review(
     unit = to_unit_range(found.targets, found.weights)
     base = base.with_vertices(base.vertices + unit.base_offset)
     markers = None if result.markers is None else result.markers * to_mm
+    head_motion = None
+    if result.head_motion is not None:
+        head_motion = result.head_motion.copy()
+        head_motion[:, :3, 3] *= float(to_mm)
     error = {k: (float(v) if isinstance(v, (float, np.floating)) else v) for k, v in found.error.items()}
     info = write_gltf(
         path, base, targets=unit.targets, weights=unit.weights, rate=result.rate,
-        markers=markers, marker_labels=list(result.marker_labels) or None,
+        markers=markers, marker_labels=list(result.marker_labels) or None, head_motion=head_motion,
         compress=compress, progress=progress,
         extras={"facecap": {"result": str(result.path.name), "method": result.info.get("method"),
                             "review_vertices": int(subset.size), "scan_vertices": result.n_vertices,

@@ -2,7 +2,7 @@
 
 Layout of the archive::
 
-    /Head            Xform, identity (one static sample)
+    /Head            Xform: identity (one static sample), or the head motion per frame
     /Head/Face       PolyMesh: the mesh's polygons, face-varying indexed
                      UVs ("uv") when it has UVs, and one positions sample
                      per frame on a uniform time sampling of 1 / rate
@@ -69,6 +69,7 @@ def write_alembic(
     n_frames: int,
     rate: float,
     unit_scale: float = 1.0,
+    head_motion: Any = None,
     progress: bool = False,
 ) -> Path:
     """Write an animated mesh to an Alembic archive from a stream of frame blocks.
@@ -96,6 +97,10 @@ def write_alembic(
         client's unit (Alembic stores no unit): for example 0.001 from mm
         blocks for Blender (1 unit = 1 m) or 0.1 for Maya (1 unit = 1 cm);
         default 1.0 writes the blocks as given.
+    head_motion : (n_frames, 4, 4) array, optional
+        Rigid motion per frame (column-vector convention, translation in the
+        blocks' unit) written as the ``/Head`` Xform's samples, so a stabilised
+        result plays where the capture saw it; default None: an identity Xform.
     progress : bool, optional
         Show a tqdm progress bar; default False.
 
@@ -142,10 +147,16 @@ def write_alembic(
     face_counts = np.ascontiguousarray(sizes, dtype=np.int32)
     face_indices = np.ascontiguousarray(corners[file_order], dtype=np.int32)
     uv = _file_order_uvs(mesh, corners, file_order)
+    motion = None
+    if head_motion is not None:
+        motion = np.asarray(head_motion, dtype=np.float64)
+        if motion.shape != (n_frames, 4, 4) or not np.all(np.isfinite(motion)):
+            raise InputError(f"head_motion: expected finite ({n_frames}, 4, 4) transforms, got {motion.shape}")
     modules = _import_alembic()
     with atomic_path(final) as tmp:
         _write_archive(tmp, modules, face_counts, face_indices, uv, blocks, n_frames=n_frames,
-                       n_vertices=mesh.n_vertices, rate=rate_hz, scale=scale, path=final, progress=progress)
+                       n_vertices=mesh.n_vertices, rate=rate_hz, scale=scale, path=final, progress=progress,
+                       motion=motion)
     return final
 
 
@@ -192,6 +203,7 @@ def _write_archive(
     scale: float,
     path: Path,
     progress: bool,
+    motion: np.ndarray | None = None,
 ) -> None:
     """Write the archive to ``tmp`` and close it (Alembic writes the file when the archive is released)."""
     Abc, AbcGeom, AbcCoreAbstract, imath = modules
@@ -202,8 +214,17 @@ def _write_archive(
         except RuntimeError as exc:
             raise InputError(f"could not create the Alembic archive ({exc})", path=str(path)) from None
         sampling = archive.addTimeSampling(AbcCoreAbstract.TimeSampling(1.0 / rate, 0.0))
-        xform = AbcGeom.OXform(archive.getTop(), _XFORM_NAME)
-        xform.getSchema().set(AbcGeom.XformSample())  # identity
+        if motion is None:
+            xform = AbcGeom.OXform(archive.getTop(), _XFORM_NAME)
+            xform.getSchema().set(AbcGeom.XformSample())  # identity
+        else:
+            xform = AbcGeom.OXform(archive.getTop(), _XFORM_NAME, sampling)
+            for M in motion:
+                row_major = M.T.copy()  # Alembic (Imath) matrices act on row vectors: translation in the last row
+                row_major[3, :3] *= scale
+                sample = AbcGeom.XformSample()
+                sample.setMatrix(imath.M44d(*[tuple(map(float, row)) for row in row_major]))
+                xform.getSchema().set(sample)
         poly = AbcGeom.OPolyMesh(xform, _MESH_NAME, sampling)
         schema = poly.getSchema()
         counts_array = imath.IntArrayFromBuffer(face_counts)

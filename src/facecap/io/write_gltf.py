@@ -18,6 +18,8 @@ Layout of the file::
       node "Markers"   (when markers are given) one child node per marker, with a
                        small octahedron mesh and a translation animation (and a
                        STEP scale animation that hides it during its gaps)
+      node "Head"      (with head motion) the root of both, with a translation and
+                       rotation animation: the face in the world
 
 Units: glTF's unit is the metre, facecap's the millimetre; positions, offsets
 and marker translations are divided by 1000 here. No normals are written: the
@@ -84,6 +86,7 @@ def write_gltf(
     target_names: list[str] | tuple[str, ...] | None = None,
     markers: np.ndarray | None = None,
     marker_labels: list[str] | tuple[str, ...] | None = None,
+    head_motion: np.ndarray | None = None,
     compress: bool = False,
     progress: bool = False,
     extras: dict[str, Any] | None = None,
@@ -117,6 +120,11 @@ def write_gltf(
         ``len(weights)`` when both are given.
     marker_labels : sequence of K str, or None
         Names of the marker nodes; default ``marker_000, ...``.
+    head_motion : (T, 4, 4) float array, mm, or None
+        Rigid motion per frame (column vectors, translation in mm) of a
+        stabilised result: a root node ``Head`` above the face and the markers
+        gets it as a translation and rotation animation (LINEAR: rotations are
+        slerped between frames), so the face plays where the capture saw it.
     compress : bool, optional
         Compress the buffers with ``EXT_meshopt_compression`` (lossless:
         meshoptimizer's vertex and index codecs, no quantisation), through
@@ -194,6 +202,15 @@ def write_gltf(
             f"markers: {marker_xyz.shape[0]} frames, but weights have {frame_weights.shape[0]}: "
             "both animate the same take"
         )
+    motion = _optional_array(head_motion, "head_motion", lambda a: a.shape[1:] == (4, 4) and a.shape[0] > 0,
+                             "(T, 4, 4) rigid transforms in mm")
+    if motion is not None:
+        frames_elsewhere = {len(a) for a in (frame_weights, marker_xyz) if a is not None}
+        if frames_elsewhere and frames_elsewhere != {motion.shape[0]}:
+            raise InputError(f"head_motion: {motion.shape[0]} frames, the weights or markers have {frames_elsewhere}")
+        R = motion[:, :3, :3]
+        if np.abs(np.einsum("tji,tjk->tik", R, R) - np.eye(3)).max() > 1e-5 or np.any(np.linalg.det(R) <= 0):
+            raise InputError("head_motion: expected rigid transforms (rotation and translation only)")
     names = _names(target_names, r, "target_names", "target")
     labels = _names(marker_labels, 0 if marker_xyz is None else marker_xyz.shape[1], "marker_labels", "marker")
     if extras is not None:
@@ -226,6 +243,8 @@ def write_gltf(
     n_frames = 0 if frame_weights is None else frame_weights.shape[0]
     if marker_xyz is not None:
         n_frames = marker_xyz.shape[0]
+    if motion is not None:
+        n_frames = motion.shape[0]
     steps = 2 + r + (1 if n_frames else 0) + (0 if marker_xyz is None else marker_xyz.shape[1])
     from tqdm import tqdm
 
@@ -287,6 +306,8 @@ def write_gltf(
                 channels.append({"sampler": len(samplers) - 1, "target": {"node": 0, "path": "weights"}})
         if marker_xyz is not None:
             _add_markers(gltf, builder, marker_xyz, labels, time_accessor, samplers, channels, bar)
+        if motion is not None:
+            _add_head_motion(gltf, builder, motion, time_accessor, samplers, channels)
         if channels:
             gltf["animations"] = [{"name": "Performance", "channels": channels, "samplers": samplers}]
         blob = builder.finish(gltf, meshopt if compress else None)
@@ -473,6 +494,28 @@ def _add_markers(gltf: dict[str, Any], builder: "_GlbBuilder", markers: np.ndarr
         bar.update()
 
 
+def _add_head_motion(gltf: dict[str, Any], builder: "_GlbBuilder", motion: np.ndarray, time_accessor: int,
+                     samplers: list[dict[str, Any]], channels: list[dict[str, Any]]) -> None:
+    """A root node ``Head`` over every node of the scene, animated by the rigid motion (metres, quaternions)."""
+    from scipy.spatial.transform import Rotation
+
+    translation = (motion[:, :3, 3] / _MM_PER_M).astype(np.float32)
+    quaternions = Rotation.from_matrix(motion[:, :3, :3]).as_quat()  # (x, y, z, w), glTF's order
+    # the shorter way round between neighbouring frames: slerp of q and -q differ
+    flip = np.cumsum(np.r_[0, (np.sum(quaternions[1:] * quaternions[:-1], axis=1) < 0).astype(int)]) % 2 == 1
+    quaternions[flip] *= -1
+    quaternions = quaternions.astype(np.float32)
+    head = len(gltf["nodes"])
+    gltf["nodes"].append({"name": "Head", "children": list(gltf["scenes"][0]["nodes"]),
+                          "translation": [float(v) for v in translation[0]],
+                          "rotation": [float(v) for v in quaternions[0]]})
+    gltf["scenes"][0]["nodes"] = [head]
+    for path, values in (("translation", translation), ("rotation", quaternions)):
+        samplers.append({"input": time_accessor, "output": builder.accessor(values, "VEC3" if path == "translation" else "VEC4"),
+                         "interpolation": "LINEAR"})
+        channels.append({"sampler": len(samplers) - 1, "target": {"node": head, "path": path}})
+
+
 # ----------------------------------------------------------------------------- container
 
 
@@ -494,7 +537,7 @@ class _GlbBuilder:
         weights, one row per frame); the accessor is its flat sequence.
         """
         data = np.ascontiguousarray(data)
-        width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3}[kind]
+        width = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}[kind]
         count = data.size // width
         component = {np.dtype(np.float32): _FLOAT, np.dtype(np.uint16): _UNSIGNED_SHORT,
                      np.dtype(np.uint32): _UNSIGNED_INT}[data.dtype]

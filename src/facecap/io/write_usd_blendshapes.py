@@ -208,13 +208,16 @@ def write_usd_blendshapes(
     targets = []
     for k in tqdm(range(m), desc="USD blend shapes", unit="shape", disable=not progress, leave=False):
         offsets = shapes[k]
-        reach = np.abs(offsets).max(axis=1)  # its weights lie in [0, 1]
-        keep = np.flatnonzero(reach > share) if share > 0 else np.arange(rig.n_vertices)
         shape = UsdSkel.BlendShape.Define(stage, f"{_FACE}/{tokens[k]}")
-        shape.CreateOffsetsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(offsets[keep], np.float32)))
-        shape.CreatePointIndicesAttr(Vt.IntArray.FromNumpy(keep.astype(np.int32)))
+        if share > 0:  # only the entries that matter, with their point indices
+            keep = np.flatnonzero(np.abs(offsets).max(axis=1) > share)  # its weights lie in [0, 1]
+            shape.CreateOffsetsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(offsets[keep], np.float32)))
+            shape.CreatePointIndicesAttr(Vt.IntArray.FromNumpy(keep.astype(np.int32)))
+        else:  # every point: no pointIndices (UsdSkel then applies the offsets to all points in order)
+            keep = offsets
+            shape.CreateOffsetsAttr(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(offsets, np.float32)))
         targets.append(shape.GetPath())
-        stored += keep.size
+        stored += keep.shape[0]
     binding.CreateBlendShapeTargetsRel().SetTargets(targets)
 
     weights_attr = animation.CreateBlendShapeWeightsAttr()
