@@ -1,0 +1,79 @@
+"""Cameras and footage: calibrated views of the mocap stage and the images they took.
+
+One home for what the video-driven detail layers (the wrinkles of Bickel et al.
+2007, section 5; shape from shading, Lo et al.) need from cameras. The
+conventions are OpenCV's, stated in ``camera.py`` and ``docs/cameras.md``:
+``x_cam = R X + T`` with ``X`` in the mocap frame in mm, pixel ``(0, 0)`` the
+centre of the top-left pixel, ``u`` right, ``v`` down.
+
+- :class:`Camera` (``camera.py``): intrinsics, lens distortion (4 to 14
+  OpenCV coefficients), image size and pose; :meth:`Camera.project`
+  (``cv2.projectPoints``' model, vectorised) and :meth:`Camera.pixel_rays` (its inverse).
+- :func:`read_opencv_calibration` / :func:`write_opencv_calibration`
+  (``read_opencv_calibration.py``): one camera per OpenCV FileStorage YAML/XML,
+  the keys of OpenCV's calibration sample plus ``R`` and ``T``.
+- :func:`read_camera_file` / :func:`write_camera_file` (``camera_file.py``):
+  the facecap camera file (JSON): every camera, the footage rate and offset, as a
+  :class:`CameraSetup`.
+- :func:`synchronize` (``synchronize.py``): a :class:`FootageSync` mapping video
+  frames to mocap frames by rate ratio and offset, checking the footage covers the take.
+- :func:`read_image` / :func:`write_image` (``image_file.py``): one PNG (8/16-bit),
+  JPEG, TIFF or EXR image as stored; :func:`image_to_float`,
+  :func:`srgb_to_linear`, :func:`linear_to_srgb` (``image_to_float.py``).
+- :func:`open_footage` (``footage.py``): an image sequence or a video file
+  (PyAV) as a lazy :class:`Footage`; :func:`write_image_sequence`
+  (``write_image_sequence.py``) and :func:`write_video` (``write_video.py``,
+  lossless FFV1 or PNG by default) write footage.
+- :class:`RayCaster` and :func:`ray_cast` (``ray_cast.py``): the point of the
+  (deformed) mesh each pixel sees (Embree), and which vertices a camera sees;
+  :func:`project_performance` (``project_performance.py``): every vertex of a
+  performance in a view, with visibility.
+"""
+
+from __future__ import annotations
+
+from .camera import DISTORTION_SIZES, Camera, PixelRays, Projection
+from .camera_file import CAMERA_FILE_FORMAT, CameraSetup, read_camera_file, write_camera_file
+from .footage import VIDEO_SUFFIXES, Footage, open_footage
+from .image_file import IMAGE_SUFFIXES, read_image, write_image
+from .image_to_float import image_to_float, linear_to_srgb, srgb_to_linear
+from .project_performance import PerformanceProjection, project_performance
+from .ray_cast import RayCaster, RayHits, ray_cast
+from .read_opencv_calibration import read_opencv_calibration, write_opencv_calibration
+from .synchronize import FootageSync, VideoBracket, synchronize
+from .write_image_sequence import SEQUENCE_FILE, write_image_sequence
+from .write_video import LOSSLESS_VIDEO_CODECS, write_video
+
+__all__ = [
+    "Camera",
+    "Projection",
+    "PixelRays",
+    "DISTORTION_SIZES",
+    "read_opencv_calibration",
+    "write_opencv_calibration",
+    "CameraSetup",
+    "CAMERA_FILE_FORMAT",
+    "read_camera_file",
+    "write_camera_file",
+    "FootageSync",
+    "VideoBracket",
+    "synchronize",
+    "read_image",
+    "write_image",
+    "IMAGE_SUFFIXES",
+    "image_to_float",
+    "srgb_to_linear",
+    "linear_to_srgb",
+    "Footage",
+    "open_footage",
+    "VIDEO_SUFFIXES",
+    "write_image_sequence",
+    "SEQUENCE_FILE",
+    "write_video",
+    "LOSSLESS_VIDEO_CODECS",
+    "RayCaster",
+    "RayHits",
+    "ray_cast",
+    "PerformanceProjection",
+    "project_performance",
+]
