@@ -1,0 +1,95 @@
+"""write_footage_case: a take, a fine scan, calibrated footage of painted wrinkles and the truth, as a user gets them."""
+
+import json
+
+import cv2
+import ezc3d
+import numpy as np
+import pytest
+
+from facecap.cameras import read_camera_file
+from facecap.errors import InputError
+from facecap.io import read_mesh
+from facecap.synth import generate_performance, load_ict_sample
+from facecap.synth.wrinkle_scan import subdivide_scan
+from facecap.synth.write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, write_footage_case
+
+
+@pytest.fixture(scope="module")
+def footage(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("footage")
+    files = write_footage_case(folder, n_frames=9, seed=2, levels=1, image_size=(346, 260), ao_rays=16, bits=16,
+                               n_markers=30)
+    return folder, files
+
+
+def test_truth_round_trip_and_large_scale(footage):
+    folder, files = footage
+    case = generate_performance(n_frames=9, rate=MOCAP_RATE_HZ, n_markers=30, seed=2)
+    fine = subdivide_scan(case.scan, levels=1)
+    with np.load(files.truth) as truth:
+        V, L, mask = truth["vertices"], truth["large_scale"], truth["wrinkle_mask"]
+        n = fine.mesh.n_vertices
+        assert V.shape == L.shape == (9, n, 3) and mask.shape == (n,) and mask.dtype == bool
+        expected = np.stack([fine.upsample @ f for f in case.truth_vertices.astype(np.float64)])
+        np.testing.assert_allclose(L, expected, atol=2e-5)
+        np.testing.assert_array_equal(V[:, ~mask], L[:, ~mask])
+        c, k = truth["curve_faces"].shape
+        assert truth["curve_points"].shape == (9, c, k, 3) and truth["depths"].shape == (9, c, k)
+        assert truth["widths"].shape == (9, c, k) and len(truth["curve_names"]) == c
+        assert float(truth["rate"]) == MOCAP_RATE_HZ and float(truth["video_rate"]) == VIDEO_RATE_HZ
+        np.testing.assert_allclose(truth["head_pose"], case.head_pose)
+    scan = read_mesh(files.scan)
+    np.testing.assert_allclose(scan.vertices, fine.mesh.vertices, atol=1e-5)
+    np.testing.assert_array_equal(scan.faces, fine.mesh.faces)
+
+
+def test_take_and_map_are_the_large_scale_markers(footage):
+    folder, files = footage
+    case = generate_performance(n_frames=9, rate=MOCAP_RATE_HZ, n_markers=30, seed=2)
+    c3d = ezc3d.c3d(str(files.markers))  # an established reader
+    points = c3d["data"]["points"][:3].transpose(2, 1, 0)
+    np.testing.assert_allclose(points, np.nan_to_num(case.markers.positions, nan=np.nan), atol=1e-3, equal_nan=True)
+    assert c3d["parameters"]["POINT"]["RATE"]["value"][0] == MOCAP_RATE_HZ
+    assert json.loads(files.map.read_text()) == case.correspondence
+
+
+def test_calibration_files_project_the_truth_onto_its_paint(footage):
+    folder, files = footage
+    setup = read_camera_file(files.cameras)
+    assert setup.video_rate_hz == VIDEO_RATE_HZ and setup.first_mocap_frame == 0
+    with np.load(files.truth) as truth:
+        curve0 = truth["curve_points"][0].reshape(-1, 3).astype(np.float64)
+        pose = truth["mocap_from_scan"] @ truth["head_pose"][0]
+        paint = truth["paint_index"]
+        c, k = truth["curve_faces"].shape
+    world = curve0 @ pose[:3, :3].T + pose[:3, 3]
+    hits = 0
+    for calibration, mask_path, video, cam in zip(files.calibrations, files.masks, files.videos, setup.cameras):
+        fs = cv2.FileStorage(str(calibration), cv2.FILE_STORAGE_READ)  # OpenCV's own reader
+        K, dist = fs.getNode("camera_matrix").mat(), fs.getNode("distortion_coefficients").mat().ravel()
+        R, T = fs.getNode("R").mat(), fs.getNode("T").mat().ravel()
+        size = (int(fs.getNode("image_width").real()), int(fs.getNode("image_height").real()))
+        fs.release()
+        np.testing.assert_allclose(K, cam.K)
+        assert size == (346, 260)
+        uv = cv2.projectPoints(world[:, None], cv2.Rodrigues(R)[0], T, K, dist)[0].reshape(c, k, 2)
+        mask = cv2.imread(str(mask_path), cv2.IMREAD_UNCHANGED)
+        assert mask.shape == (260, 346) and mask.dtype == np.uint8
+        frames = sorted(video.glob("frame_*.png"))
+        assert len(frames) == 3  # mocap frames 0, 4, 8 at a quarter of the rate
+        image = cv2.imread(str(frames[0]), cv2.IMREAD_UNCHANGED)
+        assert image.dtype == np.uint16 and image.shape == (260, 346, 3)
+        for i in range(c):
+            mid = np.rint(uv[i, k // 4 : 3 * k // 4]).astype(int)
+            inside = (mid[:, 0] >= 0) & (mid[:, 0] < 346) & (mid[:, 1] >= 0) & (mid[:, 1] < 260)
+            labels = mask[mid[inside, 1], mid[inside, 0]]
+            seen = labels > 0  # the other camera may see this curve, or a fold may hide it
+            hits += int(seen.sum())
+            assert np.all(labels[seen] == paint[i] + 1)
+    assert hits > 0.6 * 2 * c * (k // 2)
+
+
+def test_bad_bits(tmp_path):
+    with pytest.raises(InputError, match="bits"):
+        write_footage_case(tmp_path, n_frames=2, bits=12)
