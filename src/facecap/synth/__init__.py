@@ -28,6 +28,19 @@ In the order a user meets them:
 - :func:`write_synthetic_case`, :func:`write_planned_scans`
   (``write_synthetic_case.py``): a case on disk as a user would hold it
   (scan, take, map, truth), as :class:`CaseFiles`.
+- Footage with ground truth for the wrinkle layer (Bickel et al. 2007, section 5):
+  :func:`subdivide_scan`, :class:`SubdividedScan` (``wrinkle_scan.py``), the
+  scan fine enough to hold wrinkles; :func:`place_wrinkles`,
+  :func:`add_wrinkles`, :func:`wrinkle_profile`, :func:`wrinkle_activation`,
+  :class:`WrinkleCurves`, :class:`WrinkledPerformance`, :data:`WRINKLE_KINDS`,
+  :data:`INFLUENCE_WIDTHS` (``wrinkles.py``), the truth wrinkles;
+  :func:`paint_wrinkles`, :class:`PaintedSkin`, :data:`PAINT_COLORS`,
+  :data:`PAINT_HALF_WIDTH` (``wrinkle_paint.py``); :class:`FootageRenderer`,
+  :func:`ambient_occlusion`, :func:`sensor_noise`, :func:`quantize`,
+  :data:`SENSOR_DEFAULTS` (``render_footage.py``), the renderer;
+  :func:`write_footage_case`, :func:`stage_cameras`, :class:`FootageFiles`,
+  :data:`MOCAP_RATE_HZ`, :data:`VIDEO_RATE_HZ` (``write_footage_case.py``), a
+  case with its footage and truth on disk.
 """
 
 from __future__ import annotations
@@ -49,6 +62,12 @@ from .scan_expression import ScannedExpression, scan_expression
 from .skin_albedo import BASE_SKIN_TONE, SkinRegions, skin_albedo
 from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
 from .write_synthetic_case import CaseFiles, write_planned_scans, write_synthetic_case
+from .wrinkle_scan import SubdividedScan, subdivide_scan
+from .wrinkles import (INFLUENCE_WIDTHS, WRINKLE_KINDS, WrinkleCurves, WrinkledPerformance, add_wrinkles,
+                       place_wrinkles, wrinkle_activation, wrinkle_profile)
+from .wrinkle_paint import PAINT_COLORS, PAINT_HALF_WIDTH, PaintedSkin, paint_wrinkles
+from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
+from .write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, FootageFiles, stage_cameras, write_footage_case
 
 __all__ = [
     "load_ict_sample",
@@ -83,4 +102,28 @@ __all__ = [
     "write_synthetic_case",
     "write_planned_scans",
     "CaseFiles",
+    "subdivide_scan",
+    "SubdividedScan",
+    "place_wrinkles",
+    "add_wrinkles",
+    "wrinkle_profile",
+    "wrinkle_activation",
+    "WrinkleCurves",
+    "WrinkledPerformance",
+    "WRINKLE_KINDS",
+    "INFLUENCE_WIDTHS",
+    "paint_wrinkles",
+    "PaintedSkin",
+    "PAINT_COLORS",
+    "PAINT_HALF_WIDTH",
+    "FootageRenderer",
+    "ambient_occlusion",
+    "sensor_noise",
+    "quantize",
+    "SENSOR_DEFAULTS",
+    "write_footage_case",
+    "stage_cameras",
+    "FootageFiles",
+    "MOCAP_RATE_HZ",
+    "VIDEO_RATE_HZ",
 ]

@@ -10,7 +10,7 @@ from ..errors import InputError
 from ..typing import FloatArray, IntArray
 from .wrinkles import WrinkleCurves, _nearest_on_polyline
 
-__all__ = ["PAINT_COLORS", "PaintedSkin", "paint_wrinkles"]
+__all__ = ["PAINT_COLORS", "PAINT_HALF_WIDTH", "PaintedSkin", "paint_wrinkles"]
 
 PAINT_COLORS = (
     (0.08, 0.22, 0.62),  # blue
