@@ -125,3 +125,19 @@ def test_bad_footage_and_writes_leave_nothing(tmp_path: Path) -> None:
         footage.frame(1)
     with pytest.raises(InputError, match="out of range"):
         footage.frame(2)
+
+
+def test_sequence_folder_replaces_an_earlier_sequence_but_not_other_files(tmp_path: Path) -> None:
+    folder = tmp_path / "cam0"
+    write_image_sequence(folder, FRAMES_8[:3])
+    write_image_sequence(folder, FRAMES_8[3:5])  # an earlier sequence is replaced whole
+    with open_footage(folder) as footage:
+        assert footage.n_frames == 2
+        np.testing.assert_array_equal(footage.frame(1), FRAMES_8[4])
+    other = tmp_path / "photos"
+    other.mkdir()
+    (other / "holiday.jpg").write_bytes(b"keep me")
+    with pytest.raises(InputError, match="refusing to overwrite"):
+        write_image_sequence(other, FRAMES_8[:2])
+    assert [p.name for p in other.iterdir()] == ["holiday.jpg"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cam0", "photos"]
