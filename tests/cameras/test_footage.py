@@ -141,3 +141,16 @@ def test_sequence_folder_replaces_an_earlier_sequence_but_not_other_files(tmp_pa
         write_image_sequence(other, FRAMES_8[:2])
     assert [p.name for p in other.iterdir()] == ["holiday.jpg"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cam0", "photos"]
+
+
+def test_check_camera_names_both_sizes(tmp_path: Path) -> None:
+    from facecap.cameras import Camera
+
+    write_image_sequence(tmp_path / "cam0", FRAMES_8[:2])  # 61 x 37
+    footage = open_footage(tmp_path / "cam0")
+    K = [[100.0, 0.0, 30.0], [0.0, 100.0, 18.0], [0.0, 0.0, 1.0]]
+    footage.check_camera(Camera("cam0", K=K, distortion=[], width=61, height=37, R=np.eye(3), T=[0, 0, 1]))
+    with pytest.raises(InputError, match=r"footage is 61x37 but camera 'big' is calibrated for 122x74 .*scaled by 0.5"):
+        footage.check_camera(Camera("big", K=K, distortion=[], width=122, height=74, R=np.eye(3), T=[0, 0, 1]))
+    with pytest.raises(InputError, match="swapped"):
+        footage.check_camera(Camera("rot", K=K, distortion=[], width=37, height=61, R=np.eye(3), T=[0, 0, 1]))

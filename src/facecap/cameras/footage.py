@@ -78,13 +78,13 @@ class Footage:
         if kind == "images":
             first = read_image(files[0])
             self.n_frames = len(files)
-            self._set_layout(first, files[0])
+            self._set_layout(first)
         else:
             self._open_video()
 
     # -- layout ---------------------------------------------------------------------------------
 
-    def _set_layout(self, frame: np.ndarray, where: Path) -> None:
+    def _set_layout(self, frame: np.ndarray) -> None:
         self.height, self.width = int(frame.shape[0]), int(frame.shape[1])
         self.channels = 1 if frame.ndim == 2 else int(frame.shape[2])
         self.dtype = frame.dtype
@@ -228,6 +228,33 @@ class Footage:
         stop = self.n_frames if stop is None else min(int(stop), self.n_frames)
         for i in range(int(start), stop):
             yield self.frame(i)
+
+    def check_camera(self, camera: Any) -> None:
+        """Raise unless the footage's frame size is the camera's calibrated image size.
+
+        Parameters
+        ----------
+        camera : Camera
+
+        Raises
+        ------
+        InputError
+            Naming both sizes; when the footage is the calibration scaled
+            uniformly (a proxy or a downscaled export), says so.
+        """
+        if (self.width, self.height) == (camera.width, camera.height):
+            return
+        hint = ""
+        scale_x, scale_y = self.width / camera.width, self.height / camera.height
+        if abs(scale_x - scale_y) < 1e-3:
+            hint = f" (the footage is the calibrated size scaled by {scale_x:g}: calibrate at its size or scale K)"
+        elif (self.width, self.height) == (camera.height, camera.width):
+            hint = " (width and height are swapped: rotated footage?)"
+        raise InputError(
+            f"footage is {self.width}x{self.height} but camera {camera.name!r} is calibrated for "
+            f"{camera.width}x{camera.height}{hint}",
+            path=str(self.path),
+        )
 
     def close(self) -> None:
         """Release the video file (nothing to do for an image sequence)."""

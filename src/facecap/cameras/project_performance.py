@@ -46,8 +46,8 @@ def project_performance(vertices: Any, camera: Camera, *, faces: Any = None,
     camera : Camera
     faces : (m, 3) int64 array or None, default None
         Triangles; with them each frame's visibility also tests occlusion
-        by that frame's mesh (one Embree build per frame: ~2 s at 700k
-        vertices, ~30 ms at 9k). Without them, ``visible`` is in front and inside the image.
+        by that frame's mesh (one Embree build per frame: ~1 s at 700k
+        vertices, 10-100 ms at 9k). Without them, ``visible`` is in front and inside the image.
     tolerance_mm : float, default 0.01
         See :meth:`RayCaster.visible`.
     progress : bool, default False

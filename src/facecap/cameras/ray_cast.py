@@ -1,10 +1,11 @@
 """The point of a mesh each ray (each pixel of a camera) hits first, and which points a camera sees.
 
 Ray casting is Intel Embree's, through ``embreex`` (the binding trimesh
-uses): at 1384x1038 rays against the 714k-vertex benchmark face it casts about
-7 million rays per second on one busy core (docs/cameras.md has the figures;
-Open3D's ``RaycastingScene``, also Embree, was 2x faster per ray but is a
-400 MB wheel with a dozen web and notebook dependencies). Embree works in
+uses): a 1384x1038 frame against the 714k-vertex benchmark face is 0.2 s of
+Embree (7M rays/s on this shared 2-core machine) and 0.6 s with the float64
+refinement (docs/cameras.md has the figures; Open3D's ``RaycastingScene``, also
+Embree, was 2x faster per call but is a 400 MB wheel with a dozen web and
+notebook dependencies). Embree works in
 float32; each hit is refined in float64 against its triangle, so the points,
 barycentric coordinates and distances are exact to float64 rounding for the
 triangle Embree found.
@@ -96,8 +97,8 @@ class RayCaster:
 
     Notes
     -----
-    Build once per frame (the deformed mesh): about 2 s for 1.4M triangles,
-    30 ms for the 18k-triangle ICT sample. The mesh is stored shifted to its
+    Build once per frame (the deformed mesh): about 1 s for 1.4M triangles,
+    0.15 s for 210k, 10-100 ms for the 18k-triangle ICT sample. The mesh is stored shifted to its
     bounding-box centre so that Embree's float32 keeps about 1e-5 mm at face scale.
 
     Examples
