@@ -154,3 +154,23 @@ def test_check_camera_names_both_sizes(tmp_path: Path) -> None:
         footage.check_camera(Camera("big", K=K, distortion=[], width=122, height=74, R=np.eye(3), T=[0, 0, 1]))
     with pytest.raises(InputError, match="swapped"):
         footage.check_camera(Camera("rot", K=K, distortion=[], width=37, height=61, R=np.eye(3), T=[0, 0, 1]))
+
+
+def test_full_range_mjpeg_written_by_pyav_keeps_its_colours(tmp_path: Path) -> None:
+    image = np.zeros((32, 48, 3), np.uint8)
+    image[...] = (200, 100, 50)
+    image[:, :16] = (20, 240, 130)
+    with av.open(str(tmp_path / "cam.avi"), "w") as container:  # the reference writer: PyAV itself
+        stream = container.add_stream("mjpeg", rate=25)
+        stream.width, stream.height, stream.pix_fmt = 48, 32, "yuvj420p"
+        for _ in range(3):
+            for packet in stream.encode(av.VideoFrame.from_ndarray(image, format="rgb24")):
+                container.mux(packet)
+        for packet in stream.encode():
+            container.mux(packet)
+    with open_footage(tmp_path / "cam.avi") as footage:
+        assert footage.n_frames == 3 and footage.rate_hz == 25.0
+        frame = footage.frame(2).astype(int)
+    # away from the colour edge (chroma is subsampled), within JPEG's rounding: full range kept, not squeezed
+    assert np.abs(frame[:, 28:] - [200, 100, 50]).max() <= 4
+    assert np.abs(frame[:, :8] - [20, 240, 130]).max() <= 4

@@ -10,7 +10,7 @@ them H.264, H.265, ProRes, DNxHD, MJPEG, VP9, FFV1, PNG and QuickTime RLE in
 MP4, MOV, MKV or AVI; 8-bit sources give ``uint8`` RGB, sources with more bits
 per component give ``uint16`` RGB, grey sources a 2D array. The decoder's own
 YUV -> RGB conversion (FFmpeg's swscale, BT.601 unless the stream says
-otherwise) is used as is.
+otherwise, and the range the stream is tagged with: limited when untagged) is used as is.
 """
 
 from __future__ import annotations
@@ -152,7 +152,10 @@ class Footage:
         return int(round((frame.pts - self._start) * self._time_base * self._rate))
 
     def _convert(self, frame: Any) -> np.ndarray:
-        return np.ascontiguousarray(frame.to_ndarray(format=self._pixel_format))
+        # the stream's own range tag (full-range "yuvj" video), else swscale's default (limited range)
+        tagged = getattr(frame, "color_range", 0)
+        options = {"src_color_range": tagged} if tagged else {}
+        return np.ascontiguousarray(frame.to_ndarray(format=self._pixel_format, **options))
 
     def _video_frame(self, index: int) -> np.ndarray:
         import av
