@@ -9,7 +9,7 @@ from facecap.errors import InputError
 from facecap.synth import load_ict_sample, vertex_normals_at
 from facecap.synth.wrinkle_scan import subdivide_scan
 from facecap.synth.wrinkles import (INFLUENCE_WIDTHS, WRINKLE_KINDS, add_wrinkles, place_wrinkles,
-                                    wrinkle_activation, wrinkle_profile)
+                                    wrinkle_activation, wrinkle_expression_curves, wrinkle_profile)
 
 
 @lru_cache(maxsize=1)
@@ -116,3 +116,14 @@ def test_bad_input():
         wrinkle_activation(curves, np.zeros((3, 5)))
     with pytest.raises(InputError, match="large_scale"):
         add_wrinkles(np.zeros((4, 3)), fine.mesh.faces, curves, np.zeros((4, 53)))
+
+
+def test_wrinkle_expression_curves_form_every_wrinkle_in_a_four_second_take():
+    sample = load_ict_sample()
+    curves = place_wrinkles(_fine().mesh, sample, seed=3)
+    W = wrinkle_expression_curves(200, sample.expression_names, rate=50.0, seed=3)
+    assert W.shape == (200, 53) and np.all(W[0] == 0.0) and W.min() >= 0.0 and W.max() <= 1.0
+    a = wrinkle_activation(curves, W)
+    assert np.all(a.max(axis=0) > 0.5), dict(zip(curves.names, a.max(axis=0)))
+    assert np.max(np.abs(np.diff(W, axis=0))) < 0.2  # eased, not switched (50 Hz, ramps >= 0.3 s)
+    np.testing.assert_array_equal(W, wrinkle_expression_curves(200, sample.expression_names, rate=50.0, seed=3))

@@ -20,11 +20,12 @@ import numpy as np
 from ..errors import InputError
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
+from .expression_curves import EXPRESSION_PRESETS, _smoothstep
 from .generate_performance import vertex_normals_at
 from .ict_sample import IctSample
 
-__all__ = ["WrinkleCurves", "WrinkledPerformance", "WRINKLE_KINDS", "INFLUENCE_WIDTHS", "wrinkle_profile",
-           "place_wrinkles", "wrinkle_activation", "add_wrinkles"]
+__all__ = ["WrinkleCurves", "WrinkledPerformance", "WRINKLE_KINDS", "INFLUENCE_WIDTHS", "WRINKLE_EXPRESSIONS",
+           "wrinkle_profile", "place_wrinkles", "wrinkle_activation", "wrinkle_expression_curves", "add_wrinkles"]
 
 WRINKLE_KINDS = ("forehead", "glabella", "crows_feet", "nasolabial")
 """The wrinkle families :func:`place_wrinkles` can draw."""
@@ -318,6 +319,54 @@ def place_wrinkles(
     return WrinkleCurves(names=tuple(r[0] for r in rows), kinds=tuple(kind_of), points=pts, faces=faces,
                          barycentric=bary, arc_fraction=arc, gains=gains, max_depth=depth,
                          max_width=width, min_width=_MIN_WIDTH_FRACTION * width)
+
+
+WRINKLE_EXPRESSIONS: dict[str, dict[str, float]] = {
+    "brow_raise": EXPRESSION_PRESETS["surprise"],
+    "frown": EXPRESSION_PRESETS["anger"],
+    "smile": EXPRESSION_PRESETS["smile"],
+    "squint": {"eyeSquint_L": 0.9, "eyeSquint_R": 0.9, "cheekSquint_L": 0.6, "cheekSquint_R": 0.6,
+               "browDown_L": 0.2, "browDown_R": 0.2},
+}
+"""The expressions that make the generated wrinkles (brow raise, frown, smile, squint), as blendshape weights."""
+
+
+def wrinkle_expression_curves(n_frames: int, names: Sequence[str], *, rate: float, seed: int = 0,
+                              intensity: tuple[float, float] = (0.6, 1.0)) -> FloatArray:
+    """(T, len(names)) weights playing every :data:`WRINKLE_EXPRESSIONS` entry in turn, in a seeded order.
+
+    Each expression eases in (C2, 0.3-0.6 s), holds 0.2-0.6 s and eases out
+    (0.3-0.6 s) at an intensity drawn from ``intensity``; the next starts as
+    the last eases out; the order is reshuffled each round. Frame 0 is
+    neutral (the scan), after a 0.2 s lead-in.
+
+    Examples
+    --------
+    >>> W = wrinkle_expression_curves(100, ["browInnerUp_L", "mouthSmile_L"], rate=50.0)
+    >>> W.shape, float(W[0].max()), bool(W[:, 0].max() > 0.5)
+    ((100, 2), 0.0, True)
+    """
+    if isinstance(n_frames, bool) or not isinstance(n_frames, (int, np.integer)) or n_frames < 1:
+        raise InputError(f"n_frames: expected an integer >= 1, got {n_frames!r}")
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(n_frames)) / float(rate)
+    index = {s: i for i, s in enumerate(names)}
+    out = np.zeros((t.size, len(names)))
+    at = 0.2
+    keys = list(WRINKLE_EXPRESSIONS)
+    while True:
+        for key in rng.permutation(keys):
+            ramp_in, hold, ramp_out = rng.uniform(0.3, 0.6), rng.uniform(0.2, 0.6), rng.uniform(0.3, 0.6)
+            envelope = _smoothstep((t - at) / ramp_in) * (1.0 - _smoothstep((t - at - ramp_in - hold) / ramp_out))
+            scale = rng.uniform(*intensity)
+            for shape, weight in WRINKLE_EXPRESSIONS[str(key)].items():
+                if shape in index:
+                    out[:, index[shape]] += scale * weight * envelope
+            at += ramp_in + hold
+        if at > t[-1]:
+            break
+    out[0] = 0.0
+    return np.clip(out, 0.0, 1.0)
 
 
 def wrinkle_activation(curves: WrinkleCurves, weights: FloatArray) -> FloatArray:

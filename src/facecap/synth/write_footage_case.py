@@ -19,7 +19,7 @@ from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion,
 from .skin_albedo import SkinRegions, skin_albedo
 from .wrinkle_paint import PAINT_COLORS, paint_wrinkles
 from .wrinkle_scan import subdivide_scan
-from .wrinkles import place_wrinkles, add_wrinkles
+from .wrinkles import add_wrinkles, place_wrinkles, wrinkle_expression_curves
 
 __all__ = ["FootageFiles", "stage_cameras", "write_footage_case", "MOCAP_RATE_HZ", "VIDEO_RATE_HZ"]
 
@@ -182,7 +182,12 @@ def write_footage_case(
         Mocap frames (50 Hz); the footage has ``(n_frames - 1) // 4 + 1`` frames.
     seed : int, default 0
         The take, the wrinkles, the skin and the sensor noise all follow from it.
-    identity, curves, n_markers
+    curves : {None, 'wrinkles', 'smooth', 'speech', 'real', 'rapid_asymmetric'} or (T, 53) float array, optional
+        The expression weights. None or 'wrinkles' (default):
+        :func:`~facecap.synth.wrinkles.wrinkle_expression_curves` (brow
+        raise, frown, smile and squint in turn); otherwise passed to
+        :func:`~facecap.synth.generate_performance.generate_performance`.
+    identity, n_markers
         Passed to :func:`~facecap.synth.generate_performance.generate_performance`.
     levels : int, default 2
         Subdivision levels of the scan (2: 148,402 vertices).
@@ -227,6 +232,8 @@ def write_footage_case(
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
     if case is None:
+        if curves is None or (isinstance(curves, str) and curves == "wrinkles"):
+            curves = wrinkle_expression_curves(n_frames, sample.expression_names, rate=MOCAP_RATE_HZ, seed=seed)
         case = generate_performance(n_frames=n_frames, rate=MOCAP_RATE_HZ, identity=identity, curves=curves,
                                     n_markers=n_markers, seed=seed, sample=sample)
     elif abs(case.markers.rate - MOCAP_RATE_HZ) > 1e-9:
