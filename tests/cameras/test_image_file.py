@@ -64,6 +64,16 @@ def test_exr_written_by_openexr_directly_is_read(tmp_path: Path) -> None:
     np.testing.assert_array_equal(read_image(tmp_path / "ref.exr"), pixels)
 
 
+def test_half_float_exr_reads_as_float32_exactly(tmp_path: Path) -> None:
+    pixels = (RNG.random((6, 7, 3)) * 10).astype(np.float16)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with OpenEXR.File(header, {"RGB": pixels}) as exr:
+        exr.write(str(tmp_path / "half.exr"))
+    image = read_image(tmp_path / "half.exr")
+    assert image.dtype == np.float32
+    np.testing.assert_array_equal(image, pixels.astype(np.float32))
+
+
 def test_image_to_float_and_srgb() -> None:
     np.testing.assert_array_equal(image_to_float(np.array([0, 255], np.uint8)), [0.0, 1.0])
     np.testing.assert_array_equal(image_to_float(np.array([0, 65535], np.uint16)), [0.0, 1.0])
