@@ -48,7 +48,10 @@ def test_curves_lie_on_the_surface_and_cover_every_family():
     nose_base = V[sample.landmarks[33], 1]
     for name, P in zip(curves.names, curves.points):
         if name.startswith("forehead"):
-            assert P[:, 1].min() > brow_top
+            assert P[:, 1].min() > brow_top and P[:, 1].max() > brow_top + 10.0
+            region = np.array(sample.region_names)[sample.region_labels[
+                np.argmin(np.linalg.norm(V[: sample.n_vertices, None] - P[None, ::6], axis=2), axis=0)]]
+            assert set(region) <= {"forehead", "brows"}
         if name.startswith("nasolabial"):
             assert P[:, 1].max() < nose_base + 5.0
 

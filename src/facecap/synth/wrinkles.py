@@ -198,19 +198,24 @@ def _lift(V: FloatArray, F: IntArray, xy: FloatArray) -> tuple[FloatArray, IntAr
     return hits.points, hits.faces, hits.barycentric
 
 
-def _family_curves(kind: str, V: FloatArray, landmarks: IntArray, rng: np.random.Generator
+def _family_curves(kind: str, V: FloatArray, landmarks: IntArray, forehead_top: float, rng: np.random.Generator
                    ) -> list[tuple[str, str, FloatArray]]:
     """(name, side, (m, 2) xy polyline) for each curve of a family, from the 68 landmarks."""
     L = V[landmarks]
     out = []
     brow_top = float(L[17:27, 1].max())
     if kind == "forehead":
+        # between the brow hair and the hairline (the top of the sample's forehead region)
+        low, high = brow_top + 11.0, forehead_top - 3.0
         count = int(rng.integers(2, 5))
         spacing = rng.uniform(8.5, 10.5)
+        count = max(1, min(count, int((high - low) // 8.0) + 1))
+        if count > 1:
+            spacing = min(spacing, (high - low) / (count - 1))
         for i in range(count):
             half = rng.uniform(30.0, 38.0) - 3.0 * i
             x = np.linspace(-half, half, 40)
-            y0 = brow_top + 9.0 + spacing * i
+            y0 = low + spacing * i
             wobble = rng.uniform(0.3, 0.8) * np.sin(2 * np.pi * x / rng.uniform(40, 70) + rng.uniform(0, 2 * np.pi))
             y = y0 - rng.uniform(0.002, 0.006) * x * x + wobble
             out.append((f"forehead_{i}", "", np.column_stack([x, y])))
@@ -250,7 +255,8 @@ def place_wrinkles(
 ) -> WrinkleCurves:
     """Draw wrinkle valley lines on a face of ICT topology, from its landmarks.
 
-    Forehead lines (2-4, above the brows), glabella (frown) lines (one each
+    Forehead lines (2-4, between the brows and the top of the sample's
+    forehead region, 8.5-10.5 mm apart or closer to fit), glabella (frown) lines (one each
     side of the midline between the brows), crow's feet (2-3 each side,
     fanning out from the outer eye corner) and nasolabial folds (nose wing
     to outside the mouth corner), each with a seeded depth, width and shape.
@@ -295,11 +301,14 @@ def place_wrinkles(
     rng = np.random.default_rng(seed)
     index = {s: i for i, s in enumerate(sample.expression_names)}
     V, F = scan.vertices, scan.faces
+    n = sample.n_vertices
+    centre_forehead = (sample.region_labels == sample.region_names.index("forehead")) & (np.abs(V[:n, 0]) < 20.0)
+    forehead_top = float(V[:n][centre_forehead, 1].max())
     rows: list[tuple[str, str, FloatArray]] = []
     kind_of: list[str] = []
     for kind in WRINKLE_KINDS:
         if kind in kinds:
-            curves = _family_curves(kind, V, sample.landmarks, rng)
+            curves = _family_curves(kind, V, sample.landmarks, forehead_top, rng)
             rows += curves
             kind_of += [kind] * len(curves)
     c, k = len(rows), CURVE_POINTS
