@@ -6,10 +6,9 @@ import cv2
 import numpy as np
 import pytest
 
-from facecap.cameras import Camera
+from facecap.cameras import Camera, ray_cast
 from facecap.errors import InputError
-from facecap.synth.render_footage import (FootageRenderer, ambient_occlusion, cast_rays, quantize,
-                                          sensor_noise)
+from facecap.synth.render_footage import FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from facecap.synth.wrinkles import WrinkleCurves, add_wrinkles
 
 DEPTH, WIDTH = 0.8, 1.5  # mm
@@ -27,8 +26,8 @@ def _plane_with_a_wrinkle():
     F = np.concatenate([np.stack([a, a + 1, a + nx + 1], 1), np.stack([a, a + nx + 1, a + nx], 1)])
     k = 48
     line = np.column_stack([np.linspace(-25.0, 25.0, k), np.zeros(k), np.zeros(k)])
-    hits = cast_rays(V, F, line + [0.0, 0.0, 10.0], np.tile([0.0, 0.0, -1.0], (k, 1)))
-    curves = WrinkleCurves(names=("line",), kinds=("forehead",), points=hits.points[None], faces=hits.faces[None],
+    hits = ray_cast(V, F, line + [0.0, 0.0, 10.0], np.tile([0.0, 0.0, -1.0], (k, 1)))
+    curves = WrinkleCurves(names=("line",), kinds=("forehead",), points=hits.points[None], faces=hits.triangle[None],
                            barycentric=hits.barycentric[None], arc_fraction=np.linspace(0, 1, k)[None],
                            gains=np.ones((1, 1)), max_depth=np.array([DEPTH]), max_width=np.array([WIDTH]),
                            min_width=np.array([WIDTH]))

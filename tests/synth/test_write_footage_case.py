@@ -10,7 +10,7 @@ import pytest
 from facecap.cameras import read_camera_file
 from facecap.errors import InputError
 from facecap.io import read_mesh
-from facecap.synth import generate_performance, load_ict_sample
+from facecap.synth import generate_performance
 from facecap.synth.wrinkle_scan import subdivide_scan
 from facecap.synth.write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, write_footage_case
 

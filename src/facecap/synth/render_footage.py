@@ -33,33 +33,14 @@ SENSOR_DEFAULTS = {"full_well_electrons": 12000.0, "read_noise_electrons": 12.0}
 _GOLDEN_ANGLE = np.pi * (3.0 - np.sqrt(5.0))
 
 
-class _Hits(NamedTuple):
-    points: FloatArray
-    faces: IntArray
-    barycentric: FloatArray
-
-
 def _embree_scene(V: FloatArray, F: IntArray) -> Any:
+    """An Embree scene for occlusion queries (first hits with exact points: :func:`facecap.cameras.ray_cast`)."""
     from embreex import rtcore_scene
     from embreex.mesh_construction import TriangleMesh
 
     scene = rtcore_scene.EmbreeScene()
     TriangleMesh(scene, np.ascontiguousarray(V[F], dtype=np.float32))
     return scene
-
-
-def cast_rays(V: FloatArray, F: IntArray, origins: FloatArray, directions: FloatArray) -> _Hits:
-    """First hits of rays on a mesh (Embree): points, triangles (-1 for a miss), barycentric coordinates."""
-    scene = _embree_scene(V, F)
-    out = scene.run(np.ascontiguousarray(origins, dtype=np.float32),
-                    np.ascontiguousarray(directions, dtype=np.float32), output=1)
-    tri = out["primID"].astype(np.int64)
-    u, v = out["u"].astype(np.float64), out["v"].astype(np.float64)
-    bary = np.stack([1.0 - u - v, u, v], axis=1)
-    hit = tri >= 0
-    points = np.full((tri.size, 3), np.nan)
-    points[hit] = np.einsum("qj,qjd->qd", bary[hit], V[F[tri[hit]]])
-    return _Hits(points, tri, bary)
 
 
 def _cosine_directions(count: int) -> FloatArray:

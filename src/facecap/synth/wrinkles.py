@@ -189,13 +189,13 @@ def _resample_2d(P: FloatArray, k: int) -> FloatArray:
 
 def _lift(V: FloatArray, F: IntArray, xy: FloatArray) -> tuple[FloatArray, IntArray, FloatArray]:
     """Points on the surface seen along -z from above each (x, y): positions, triangles, barycentrics."""
-    from .render_footage import cast_rays
+    from ..cameras import ray_cast
 
     origins = np.column_stack([xy, np.full(len(xy), V[:, 2].max() + 100.0)])
-    hits = cast_rays(V, F, origins, np.tile([0.0, 0.0, -1.0], (len(xy), 1)))
-    if (hits.faces < 0).any():
+    hits = ray_cast(V, F, origins, np.tile([0.0, 0.0, -1.0], (len(xy), 1)))
+    if not hits.hit.all():
         raise InputError("place_wrinkles: a wrinkle curve runs off the face (no surface under it)")
-    return hits.points, hits.faces, hits.barycentric
+    return hits.points, hits.triangle, hits.barycentric
 
 
 def _family_curves(kind: str, V: FloatArray, landmarks: IntArray, forehead_top: float, rng: np.random.Generator
