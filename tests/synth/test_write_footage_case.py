@@ -52,6 +52,10 @@ def test_take_and_map_are_the_large_scale_markers(footage):
     np.testing.assert_allclose(points, np.nan_to_num(case.markers.positions, nan=np.nan), atol=1e-3, equal_nan=True)
     assert c3d["parameters"]["POINT"]["RATE"]["value"][0] == MOCAP_RATE_HZ
     assert json.loads(files.map.read_text()) == case.correspondence
+    # the fine scan keeps each marker's vertex where the ICT scan had it
+    scan = read_mesh(files.scan)
+    for vertex in case.correspondence.values():
+        np.testing.assert_allclose(scan.vertices[vertex], case.scan.vertices[vertex], atol=1e-5)
 
 
 def test_calibration_files_project_the_truth_onto_its_paint(footage):
@@ -90,6 +94,9 @@ def test_calibration_files_project_the_truth_onto_its_paint(footage):
     assert hits > 0.6 * 2 * c * (k // 2)
 
 
-def test_bad_bits(tmp_path):
-    with pytest.raises(InputError, match="bits"):
-        write_footage_case(tmp_path, n_frames=2, bits=12)
+def test_bad_options_write_nothing(tmp_path):
+    for options, message in (({"bits": 12}, "bits"), ({"image_size": (100,)}, "image_size"),
+                             ({"image_size": (8, 8)}, "image_size"), ({"ao_rays": 0}, "ao_rays")):
+        with pytest.raises(InputError, match=message):
+            write_footage_case(tmp_path / "case", n_frames=2, **options)
+    assert not (tmp_path / "case").exists() or not any((tmp_path / "case").iterdir())

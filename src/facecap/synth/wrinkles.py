@@ -470,15 +470,20 @@ def add_wrinkles(
         raise InputError(f"rest: expected shape ({n}, 3), got {rest.shape}")
     a = wrinkle_activation(curves, W)  # (T, c)
     peak_width = curves.min_width[None] + a * (curves.max_width - curves.min_width)[None]  # (T, c)
-    heights = np.zeros((T, n), dtype=np.float64)
+    influence = _influence(curves, rest)
     mask = np.zeros(n, dtype=bool)
-    for i, (idx, dist, s) in enumerate(_influence(curves, rest)):
+    for idx, _, _ in influence:
         mask[idx] = True
+    moving = np.flatnonzero(mask)
+    column = np.full(n, -1, dtype=np.int64)
+    column[moving] = np.arange(moving.size)
+    local = np.zeros((T, moving.size))  # heights on the mask only: the rest is exactly 0
+    for i, (idx, dist, s) in enumerate(influence):
         d = a[:, i : i + 1] * curves.max_depth[i] * _depth_taper(s)[None]
         w = peak_width[:, i : i + 1] * _width_taper(s)[None]
-        heights[:, idx] += wrinkle_profile(dist[None], d, w)
-    heights = heights.astype(np.float32)
-    moving = np.flatnonzero(mask)
+        local[:, column[idx]] += wrinkle_profile(dist[None], d, w)
+    heights = np.zeros((T, n), dtype=np.float32)
+    heights[:, moving] = local
     vertices = np.array(X, dtype=np.float32)
     s_pts = curves.arc_fraction
     depths = a[:, :, None] * curves.max_depth[None, :, None] * _depth_taper(s_pts)[None]

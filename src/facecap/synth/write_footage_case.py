@@ -206,9 +206,16 @@ def write_footage_case(
     -------
     FootageFiles
 
+    Raises
+    ------
+    InputError
+        On a bad option (``bits``, ``image_size``, ``ao_rays``, ``levels``, the
+        take's options) or a ``case`` not at 50 Hz.
+
     Notes
     -----
-    Written: ``scan.obj`` (the fine scan), ``take.c3d``, ``map.json``,
+    Every file is written atomically and ``truth.npz`` last: a folder without
+    it is an interrupted run. Written: ``scan.obj`` (the fine scan), ``take.c3d``, ``map.json``,
     ``cameras.json`` (the facecap camera file: both cameras, 12.5 fps, first
     mocap frame 0), ``calibration_<cam>.yml`` (OpenCV FileStorage),
     ``<cam>/frame_000000.png ...``, ``mask_<cam>.png`` (frame 0: 1 + paint
@@ -228,6 +235,14 @@ def write_footage_case(
 
     if bits not in (8, 16):
         raise InputError(f"bits: expected 8 or 16, got {bits!r}")
+    try:
+        width, height = (int(x) for x in image_size)
+    except (TypeError, ValueError):
+        raise InputError(f"image_size: expected (width, height) in pixels, got {image_size!r}") from None
+    if width < 16 or height < 16 or (width, height) != tuple(image_size):
+        raise InputError(f"image_size: expected two integers >= 16, got {image_size!r}")
+    if isinstance(ao_rays, bool) or not isinstance(ao_rays, (int, np.integer)) or ao_rays < 1:
+        raise InputError(f"ao_rays: expected an integer >= 1, got {ao_rays!r}")
     sample = load_ict_sample() if sample is None else sample
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
