@@ -186,13 +186,16 @@ class _View(NamedTuple):
     size: tuple[int, int]  # render (width, height)
     map_x: np.ndarray
     map_y: np.ndarray
+    msaa: Any  # multisampled framebuffer (colour + depth), made once: llvmpipe's buffers are large
+    resolved: Any  # single-sample framebuffer it resolves into
 
 
 def _camera_field(camera: Any, name: str) -> Any:
     try:
         return getattr(camera, name)
     except AttributeError:
-        raise InputError(f"cameras: expected objects with K, distortion, width, height, R, T; missing {name!r}") from None
+        raise InputError(f"cameras: expected objects with K, distortion, width, height, R, T; "
+                         f"missing {name!r}") from None
 
 
 class FootageRenderer:
@@ -255,7 +258,11 @@ class FootageRenderer:
             Kr = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
             map_x = (ideal[..., 0] * fx + cx).astype(np.float32)
             map_y = (ideal[..., 1] * fy + cy).astype(np.float32)
-            self._views.append(_View(Kr, (w_r, h_r), map_x, map_y))
+            msaa = self._ctx.framebuffer(
+                color_attachments=[self._ctx.renderbuffer((w_r, h_r), 4, samples=self._samples, dtype="f4")],
+                depth_attachment=self._ctx.depth_renderbuffer((w_r, h_r), samples=self._samples))
+            resolved = self._ctx.framebuffer(color_attachments=[self._ctx.renderbuffer((w_r, h_r), 4, dtype="f4")])
+            self._views.append(_View(Kr, (w_r, h_r), map_x, map_y, msaa, resolved))
 
     def render(self, vertices: FloatArray, radiance: FloatArray) -> list[np.ndarray]:
         """Images of the mesh in every camera.
@@ -292,9 +299,7 @@ class FootageRenderer:
             w_r, h_r = view.size
             self._program["intrinsics"].value = (view.K[0, 0], view.K[1, 1], view.K[0, 2], view.K[1, 2])
             self._program["viewport"].value = (float(w_r), float(h_r), self._near, self._far)
-            msaa = ctx.framebuffer(color_attachments=[ctx.renderbuffer((w_r, h_r), 4, samples=self._samples, dtype="f4")],
-                                   depth_attachment=ctx.depth_renderbuffer((w_r, h_r), samples=self._samples))
-            resolved = ctx.framebuffer(color_attachments=[ctx.renderbuffer((w_r, h_r), 4, dtype="f4")])
+            msaa, resolved = view.msaa, view.resolved
             msaa.use()
             ctx.enable(moderngl.DEPTH_TEST)
             ctx.disable(moderngl.CULL_FACE)
@@ -305,10 +310,10 @@ class FootageRenderer:
             # row 0 of the framebuffer is v = 0: the projection maps v to ndc y without a flip
             images.append(cv2.remap(raw, view.map_x, view.map_y, cv2.INTER_LINEAR,
                                     borderMode=cv2.BORDER_CONSTANT, borderValue=0))
-            for obj in (vao, vbo, msaa, resolved):
-                obj.release()
+            vao.release()
+            vbo.release()
         return images
 
     def close(self) -> None:
-        """Release the OpenGL context."""
+        """Release the OpenGL context and everything made in it."""
         self._ctx.release()

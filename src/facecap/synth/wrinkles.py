@@ -229,7 +229,8 @@ def _family_curves(kind: str, V: FloatArray, landmarks: IntArray, forehead_top: 
         elif kind == "crows_feet":
             corner = L[45 if sign > 0 else 36, :2]
             count = int(rng.integers(2, 4))
-            angles = np.deg2rad(np.array([-28.0, 0.0, 28.0])[:count] + rng.uniform(-5, 5, count) + (8.0 if count == 2 else 0.0))
+            fan = np.array([-28.0, 0.0, 28.0])[:count] + (8.0 if count == 2 else 0.0)  # two lines: centred
+            angles = np.deg2rad(fan + rng.uniform(-5, 5, count))
             for j, a in enumerate(angles):
                 direction = np.array([sign * np.cos(a), np.sin(a)])
                 start = corner + direction * rng.uniform(6.0, 8.0)
@@ -495,7 +496,8 @@ def add_wrinkles(
         block = X[t0 : t0 + batch_frames].astype(np.float64)
         if moving.size:
             N = vertex_normals_at(block, faces, moving)
-            vertices[t0 : t0 + batch_frames, moving] += (heights[t0 : t0 + batch_frames, moving, None] * N).astype(np.float32)
+            lift = heights[t0 : t0 + batch_frames, moving, None] * N
+            vertices[t0 : t0 + batch_frames, moving] += lift.astype(np.float32)
         # the valley line on the wrinkled surface: large-scale point, minus the depth along the smooth normal
         Nc = vertex_normals_at(block, faces, np.unique(corner))
         row = np.full(n, -1)
