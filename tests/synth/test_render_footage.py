@@ -8,6 +8,7 @@ import pytest
 
 from facecap.cameras import Camera, ray_cast
 from facecap.errors import InputError
+from facecap.synth import vertex_normals_at
 from facecap.synth.render_footage import FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from facecap.synth.wrinkles import WrinkleCurves, add_wrinkles
 
@@ -67,6 +68,32 @@ def test_ambient_occlusion_flat_is_one_and_valley_is_shadowed():
     # 2.5D check of the valley bottom: the walls' horizon from the profile itself bounds its sky
     assert ao[valley].mean() < 0.92
     assert ao[far].min() > 0.995 and ao[bulge].mean() > ao[valley].mean() + 0.05
+
+
+def test_ambient_occlusion_equals_the_2d_visible_wedge_integral_across_a_long_valley():
+    """Bickel et al.'s eq. 6 in 2.5D: a wedge from -a to b about the normal receives (sin b + sin a) / 2 of the sky."""
+    V, F, out = _plane_with_a_wrinkle()
+    W = out.vertices[0].astype(np.float64)
+    ao = ambient_occlusion(W, F, rays=64)
+    row = np.flatnonzero(V[:, 0] == 0.0)
+    row = row[np.argsort(V[row, 1])]
+    y, h = V[row, 1], W[row, 2]
+    N = vertex_normals_at(W, F, row)
+    errors = []
+    for j in np.flatnonzero(np.abs(y) <= 6.0):
+        dy, dh = y - y[j], h - h[j]
+        tilt = np.arctan2(N[j, 1], N[j, 2])  # the normal's angle from +z towards +y
+        rise_plus = np.max(np.arctan2(dh[dy > 0], dy[dy > 0]))  # horizon elevations either side
+        rise_minus = np.max(np.arctan2(dh[dy < 0], -dy[dy < 0]))
+        low = max(-(np.pi / 2 - rise_minus), tilt - np.pi / 2) - tilt
+        high = min(np.pi / 2 - rise_plus, tilt + np.pi / 2) - tilt
+        expected = (np.sin(high) - np.sin(low)) / 2.0
+        # the valley is straight and steady mid-way: average the vertices of this row across |x| <= 4 mm
+        same = (np.abs(V[:, 1] - y[j]) < 1e-9) & (np.abs(V[:, 0]) <= 4.0)
+        errors.append(ao[same].mean() - expected)
+        if abs(y[j]) < 1e-9:
+            assert expected < 0.9  # the valley bottom does lose sky
+    assert np.max(np.abs(errors)) < 0.012 and np.mean(np.abs(errors)) < 0.003
 
 
 def test_rendered_valley_is_darker_than_the_skin_beside_it():
