@@ -94,9 +94,24 @@ def test_calibration_files_project_the_truth_onto_its_paint(footage):
     assert hits > 0.6 * 2 * c * (k // 2)
 
 
+def test_offset_and_own_cameras(tmp_path, footage):
+    _, files = footage
+    setup = read_camera_file(files.cameras)
+    one = setup.cameras[1]
+    out = write_footage_case(tmp_path / "case", n_frames=9, seed=2, levels=1, ao_rays=8, n_markers=30,
+                             first_mocap_frame=2, cameras=[one])
+    assert [p.name for p in out.videos] == [one.name] and len(out.masks) == 1
+    assert len(sorted(out.videos[0].glob("frame_*.png"))) == 2  # mocap frames 2 and 6
+    again = read_camera_file(out.cameras)
+    assert again.first_mocap_frame == 2 and again.cameras[0].name == one.name
+    np.testing.assert_allclose(again.cameras[0].K, one.K)
+    assert json.loads(out.footage.read_text())["first_mocap_frame"] == 2
+
+
 def test_bad_options_write_nothing(tmp_path):
     for options, message in (({"bits": 12}, "bits"), ({"image_size": (100,)}, "image_size"),
-                             ({"image_size": (8, 8)}, "image_size"), ({"ao_rays": 0}, "ao_rays")):
+                             ({"image_size": (8, 8)}, "image_size"), ({"ao_rays": 0}, "ao_rays"),
+                             ({"first_mocap_frame": 4}, "first_mocap_frame"), ({"cameras": []}, "cameras")):
         with pytest.raises(InputError, match=message):
             write_footage_case(tmp_path / "case", n_frames=2, **options)
     assert not (tmp_path / "case").exists() or not any((tmp_path / "case").iterdir())

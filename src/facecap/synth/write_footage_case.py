@@ -156,6 +156,8 @@ def write_footage_case(
     ao_rays: int = 64,
     bits: int = 8,
     n_markers: int | None = None,
+    first_mocap_frame: int = 0,
+    cameras: Any = None,
     case: SyntheticCase | None = None,
     sample: IctSample | None = None,
     progress: bool = False,
@@ -196,6 +198,12 @@ def write_footage_case(
         Ambient-occlusion rays per vertex.
     bits : {8, 16}, default 8
         PNG depth. The sensor response is linear (no gamma): a code is proportional to radiance.
+    first_mocap_frame : int, default 0
+        The mocap frame at which video frame 0 is exposed (0-3: the synchronisation offset);
+        video frame ``j`` is mocap frame ``first_mocap_frame + 4 j``.
+    cameras : sequence of facecap.cameras.Camera, optional
+        Cameras in the take's mocap frame instead of :func:`stage_cameras`'
+        two (any number, distinct names; ``image_size`` is then theirs).
     case : SyntheticCase, optional
         A take to use instead of generating one (its rate must be 50 Hz).
     sample : IctSample, optional
@@ -243,6 +251,14 @@ def write_footage_case(
         raise InputError(f"image_size: expected two integers >= 16, got {image_size!r}")
     if isinstance(ao_rays, bool) or not isinstance(ao_rays, (int, np.integer)) or ao_rays < 1:
         raise InputError(f"ao_rays: expected an integer >= 1, got {ao_rays!r}")
+    if isinstance(first_mocap_frame, bool) or not isinstance(first_mocap_frame, (int, np.integer)) \
+            or not 0 <= first_mocap_frame < 4:
+        raise InputError(f"first_mocap_frame: expected an integer in 0..3, got {first_mocap_frame!r}")
+    if cameras is not None:
+        cameras = list(cameras)
+        names = [getattr(cam, "name", None) for cam in cameras]
+        if not cameras or len(set(names)) != len(names):
+            raise InputError("cameras: expected at least one camera, with distinct names")
     sample = load_ict_sample() if sample is None else sample
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
@@ -266,9 +282,12 @@ def write_footage_case(
     wrinkled = add_wrinkles(large, mesh.faces, wrinkle_curves, case.weights, rest=rest)
     regions = _fine_regions(sample, S, rest)
     painted = paint_wrinkles(wrinkle_curves, rest, skin_albedo(rest, seed=seed, region=regions))
-    cameras = stage_cameras(rest, sample.landmarks, case.mocap_from_scan, image_size=image_size)
+    if cameras is None:
+        cameras = stage_cameras(rest, sample.landmarks, case.mocap_from_scan, image_size=(width, height))
     renderer = FootageRenderer(mesh.faces, cameras)
-    video_frames = np.arange(0, T, 4)
+    video_frames = np.arange(first_mocap_frame, T, 4)
+    if video_frames.size == 0:
+        raise InputError(f"n_frames: {T} mocap frames hold no video frame from mocap frame {first_mocap_frame}")
     noise_rng = np.random.default_rng(np.random.SeedSequence([seed, 12_5]))
     bar = None
     if progress:
@@ -280,7 +299,9 @@ def write_footage_case(
         M = case.mocap_from_scan @ case.head_pose[t]
         return V @ M[:3, :3].T + M[:3, 3]
 
-    second: list[np.ndarray] = []
+    # the first camera's frames stream to disk as they are rendered; the others wait in memory (their
+    # ambient occlusion is the same, so each frame is shaded once for every camera)
+    others: list[list[np.ndarray]] = [[] for _ in cameras[1:]]
 
     def first_camera_frames() -> Any:
         for t in video_frames:
@@ -288,7 +309,8 @@ def write_footage_case(
             occlusion = ambient_occlusion(V, mesh.faces, rays=ao_rays, seed=seed + int(t))
             images = renderer.render(world(int(t), V), EXPOSURE * painted.albedo * occlusion[:, None])
             coded = [quantize(sensor_noise(img, rng=noise_rng), bits=bits) for img in images]
-            second.append(coded[1])
+            for kept, image in zip(others, coded[1:]):
+                kept.append(image)
             if bar is not None:
                 bar.update(1)
             yield coded[0]
@@ -296,8 +318,10 @@ def write_footage_case(
     videos = tuple(out / cam.name for cam in cameras)
     try:
         write_image_sequence(videos[0], first_camera_frames())
-        write_image_sequence(videos[1], second)
-        masks_img = _paint_masks(renderer, world(0, wrinkled.vertices[0].astype(np.float64)),
+        for folder_k, kept in zip(videos[1:], others):
+            write_image_sequence(folder_k, kept)
+        first = int(video_frames[0])
+        masks_img = _paint_masks(renderer, world(first, wrinkled.vertices[first].astype(np.float64)),
                                  np.where(painted.stripe >= 0, painted.color_index[painted.stripe], -1),
                                  len(PAINT_COLORS))
     finally:
@@ -313,10 +337,10 @@ def write_footage_case(
         calibrations.append(out / f"calibration_{cam.name}.yml")
         write_opencv_calibration(calibrations[-1], cam)
     cameras_path = out / "cameras.json"
-    write_camera_file(cameras_path, CameraSetup(tuple(cameras), video_rate_hz=VIDEO_RATE_HZ, first_mocap_frame=0.0))
+    write_camera_file(cameras_path, CameraSetup(tuple(cameras), video_rate_hz=VIDEO_RATE_HZ, first_mocap_frame=float(first_mocap_frame)))
     footage_path = out / "footage.json"
     atomic_write_text(footage_path, json.dumps({
-        "video_rate_hz": VIDEO_RATE_HZ, "mocap_rate_hz": MOCAP_RATE_HZ, "first_mocap_frame": 0,
+        "video_rate_hz": VIDEO_RATE_HZ, "mocap_rate_hz": MOCAP_RATE_HZ, "first_mocap_frame": int(first_mocap_frame),
         "video_frames": int(video_frames.size), "bits": bits, "response": "linear",
         "exposure": EXPOSURE, "sensor": SENSOR_DEFAULTS, "ao_rays": ao_rays,
         "lighting": "uniform sky, ambient occlusion (cosine-weighted visibility)",
