@@ -22,7 +22,7 @@ import pytest
 from distributed import Client, LocalCluster
 
 from facecap import InputError
-from facecap.runner import FrameRun, read_chunk, run_frames
+from facecap.runner import FrameRun, read_chunk, run_chunk, run_frames
 from runner_stages import FailWhileFlagged, SlowStage, WarmStage, calls, chain_step, reference_frame
 
 HERE = Path(__file__).resolve().parent
@@ -47,8 +47,15 @@ def _truth(n_frames: int = N_FRAMES) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def truth() -> np.ndarray:
-    return _truth()
+def truth(tmp_path_factory: pytest.TempPathFactory) -> np.ndarray:
+    """The single-process run (the bar's reference), checked frame for frame against direct computation."""
+    single = run_frames(_stage(), N_FRAMES, tmp_path_factory.mktemp("single"), chunk_frames=CHUNK,
+                        scheduler="synchronous", progress=False)
+    frames = np.array(single.load("values"))
+    sample = [0, 1, CHUNK - 1, CHUNK, 57, N_FRAMES - 1]
+    np.testing.assert_array_equal(frames[sample], [reference_frame(SEED, f, N_VALUES, ITERATIONS) for f in sample])
+    np.testing.assert_array_equal(single.load("frame"), np.arange(N_FRAMES))
+    return frames
 
 
 def _stage(log_dir: Path | None = None) -> SlowStage:
@@ -63,9 +70,6 @@ def _finished(work: Path) -> list[Path]:
 
 def test_a_worker_killed_mid_chunk_changes_no_frame(tmp_path: Path, truth: np.ndarray) -> None:
     """The issue's bar: 120 frames, two worker processes, one SIGKILLed in the middle of a chunk."""
-    single = run_frames(_stage(), N_FRAMES, tmp_path / "single", chunk_frames=CHUNK, scheduler="synchronous",
-                        progress=False)
-    np.testing.assert_array_equal(single.load("values"), truth)
 
     log_dir = tmp_path / "log"
     work = tmp_path / "cluster"
@@ -103,11 +107,13 @@ def test_a_worker_killed_mid_chunk_changes_no_frame(tmp_path: Path, truth: np.nd
     with pytest.raises(ProcessLookupError):
         os.kill(killed["pid"], 0)
     assert run.computed == tuple(range(N_FRAMES // CHUNK)) and run.reused == ()
-    np.testing.assert_array_equal(run.load("values"), single.load("values"))
+    np.testing.assert_array_equal(run.load("values"), truth)  # the single-process run, bit for bit
     np.testing.assert_array_equal(run.load("frame"), np.arange(N_FRAMES))
-    # Chunk for chunk, the same bytes as the single-process run (the chunk file is deterministic).
-    for a, b in zip(_finished(work), _finished(tmp_path / "single"), strict=True):
-        assert a.name == b.name and a.read_bytes() == b.read_bytes()
+    # Chunk for chunk, the same bytes as a chunk computed alone in this process (the file is deterministic).
+    for index in (0, N_FRAMES // CHUNK - 1):
+        alone = run_chunk(_stage(), run.chunks[index], tmp_path / "alone.npz", run_id=read_chunk(
+            run.chunk_path(index), header_only=True).header["run_id"])
+        assert alone.read_bytes() == run.chunk_path(index).read_bytes()
     assert not list((work / "chunks").glob(".*partial*"))
 
 
@@ -247,8 +253,129 @@ def test_without_assembly_the_frames_come_from_the_chunks(tmp_path: Path) -> Non
         run.load("missing")
 
 
-def test_the_run_record_names_the_chunk_files(tmp_path: Path) -> None:
-    run = run_frames(_stage(), 10, tmp_path, chunk_frames=4, scheduler="synchronous", progress=False)
+def test_the_run_record_names_the_chunk_files(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run = run_frames(_stage(), 10, tmp_path, chunk_frames=4, scheduler="synchronous", progress=True)
+    assert "frame chunks" in capsys.readouterr().err  # the progress bar over chunks
     assert isinstance(run, FrameRun)
     assert [p.name for p in _finished(tmp_path)] == [run.chunk_path(i).name for i in range(3)]
     assert run.arrays == {"values": tmp_path.resolve() / "values.npy", "frame": tmp_path.resolve() / "frame.npy"}
+
+
+def _chunk_stats(work: Path) -> dict[str, tuple[int, int]]:
+    return {p.name: (p.stat().st_ino, p.stat().st_mtime_ns) for p in _finished(work)}
+
+
+def test_a_resume_with_other_parameters_or_chunking_is_refused(tmp_path: Path) -> None:
+    work = tmp_path / "work"
+    run_frames(_stage(), 12, work, chunk_frames=4, scheduler="synchronous", progress=False)
+    before = _chunk_stats(work)
+    other_seed = SlowStage(SEED + 1, n_values=N_VALUES, iterations=ITERATIONS)
+    with pytest.raises(InputError, match=rf"parameter seed: {SEED} before, {SEED + 1} now"):
+        run_frames(other_seed, 12, work, chunk_frames=4, scheduler="synchronous", progress=False)
+    with pytest.raises(InputError, match="chunk_frames: 4 before, 6 now"):
+        run_frames(_stage(), 12, work, chunk_frames=6, scheduler="synchronous", progress=False)
+    with pytest.raises(InputError, match="n_frames: 12 before, 16 now"):
+        run_frames(_stage(), 16, work, chunk_frames=4, scheduler="synchronous", progress=False)
+    with pytest.raises(InputError, match="segment_chunks: 1 before, None now"):
+        run_frames(_stage(), 12, work, chunk_frames=4, segment_chunks=None, scheduler="synchronous", progress=False)
+    with pytest.raises(InputError, match="stage: 'runner_stages.SlowStage' before, 'runner_stages.WarmStage' now"):
+        run_frames(WarmStage(), 12, work, chunk_frames=4, scheduler="synchronous", progress=False)
+    assert _chunk_stats(work) == before  # nothing was touched by the refusals
+    run = run_frames(other_seed, 12, work, chunk_frames=4, scheduler="synchronous", restart=True, progress=False)
+    assert run.computed == (0, 1, 2)
+    expected = np.stack([reference_frame(SEED + 1, f, N_VALUES, ITERATIONS) for f in range(12)])
+    np.testing.assert_array_equal(run.load("values"), expected)
+
+
+def test_chunks_without_a_manifest_are_not_adopted(tmp_path: Path) -> None:
+    work = tmp_path / "work"
+    run_frames(_stage(), 8, work, chunk_frames=4, scheduler="synchronous", progress=False)
+    (work / "manifest.json").unlink()
+    with pytest.raises(InputError, match="holds chunks but no manifest.json"):
+        run_frames(_stage(), 8, work, chunk_frames=4, scheduler="synchronous", progress=False)
+
+
+def test_a_second_run_on_the_same_folder_at_the_same_time_is_refused(tmp_path: Path) -> None:
+    import fcntl
+
+    tmp_path.joinpath(".lock").touch()
+    with open(tmp_path / ".lock") as held:
+        fcntl.flock(held, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(InputError, match="another run is using this work folder"):
+            run_frames(_stage(), 4, tmp_path, chunk_frames=4, scheduler="synchronous", progress=False)
+    run_frames(_stage(), 4, tmp_path, chunk_frames=4, scheduler="synchronous", progress=False)
+
+
+class _ShapeChangesAtFrame8:
+    def parameters(self) -> dict[str, int]:
+        return {}
+
+    def __call__(self, start: int, stop: int, state: object):
+        return {"values": np.zeros((stop - start, 3 if start < 8 else 4), np.float32)}, None
+
+
+def test_chunks_that_disagree_on_their_arrays_are_an_error(tmp_path: Path) -> None:
+    with pytest.raises(InputError, match=r"different arrays for chunk 2 .*values float32 \(4,\) there"):
+        run_frames(_ShapeChangesAtFrame8(), 12, tmp_path, chunk_frames=4, scheduler="synchronous", progress=False)
+    assert not list(tmp_path.glob("*.npy"))
+
+
+def test_a_damaged_chunk_is_recomputed_with_a_warning(tmp_path: Path) -> None:
+    from facecap import FacecapWarning
+
+    run_frames(_stage(), 12, tmp_path, chunk_frames=4, scheduler="synchronous", progress=False)
+    damaged = _finished(tmp_path)[1]
+    damaged.write_bytes(damaged.read_bytes()[:1000])  # what a crash of the machine could leave
+    with pytest.warns(FacecapWarning, match="recomputing a damaged chunk"):
+        run = run_frames(_stage(), 12, tmp_path, chunk_frames=4, scheduler="synchronous", progress=False)
+    assert run.computed == (1,) and run.reused == (0, 2)
+    np.testing.assert_array_equal(run.load("values"), _truth(12))
+
+
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        ({"n_frames": 0}, "n_frames must be a positive integer"),
+        ({"chunk_frames": 2.5}, "chunk_frames must be a positive integer"),
+        ({"segment_chunks": 0}, "segment_chunks must be a positive integer"),
+        ({"scheduler": 8786}, "scheduler must be None, 'synchronous' or an address"),
+        ({"n_workers": 0, "scheduler": None}, "n_workers must be a positive integer"),
+    ],
+)
+def test_bad_arguments_are_clear_errors(tmp_path: Path, arguments: dict, message: str) -> None:
+    options = {"n_frames": 8, "chunk_frames": 4, "scheduler": "synchronous", **arguments}
+    n_frames = options.pop("n_frames")
+    with pytest.raises(InputError, match=message):
+        run_frames(_stage(), n_frames, tmp_path / "work", progress=False, **options)
+
+
+def test_a_work_folder_that_is_a_file_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(InputError, match="the work folder is a file"):
+        run_frames(_stage(), 4, tmp_path / "file", scheduler="synchronous", progress=False)
+
+
+def test_the_callers_default_dask_client_is_neither_used_nor_replaced(tmp_path: Path, cluster_address: str) -> None:
+    """A caller with a Dask client of its own (on its own event loop) keeps it as the default."""
+    from distributed import default_client
+
+    with Client(cluster_address) as mine:
+        run = run_frames(_stage(), 16, tmp_path, chunk_frames=4, scheduler=cluster_address, progress=False)
+        assert default_client() is mine
+    np.testing.assert_array_equal(run.load("values"), _truth(16))
+
+
+def test_a_chunk_that_kills_its_workers_fails_the_run_clearly(tmp_path: Path) -> None:
+    """A crash in compiled code or the OOM killer: Dask gives up on the chunk (here at the first death)."""
+    import dask
+
+    from facecap import SolverError
+    from runner_stages import ExitsTheWorker
+
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), _cluster() as cluster:
+        started = time.monotonic()
+        with pytest.raises(SolverError, match=r"chunk \d \(frames \d+-\d+\) killed every worker that ran it"):
+            run_frames(ExitsTheWorker(), 8, tmp_path, chunk_frames=4, scheduler=cluster.scheduler_address,
+                       progress=False)
+        assert time.monotonic() - started < 30
+    assert not list((tmp_path / "chunks").glob("chunk-*"))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import logging
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -57,6 +58,8 @@ def connect_scheduler(
         raise InputError(f"connect_timeout_s must be positive; got {connect_timeout_s!r}")
     from distributed import Client, LocalCluster
 
+    # Not the process's default client: the caller's own Dask work keeps its client,
+    # and the runner names its client wherever Dask would otherwise look one up.
     if scheduler is None:
         n_workers = _positive_int(n_workers, "n_workers")
         # A random dashboard port: the fixed default (8787) collides with any other
@@ -64,20 +67,28 @@ def connect_scheduler(
         with LocalCluster(
             n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0",
             silence_logs=logging.ERROR,
-        ) as cluster, Client(cluster) as client:
+        ) as cluster, Client(cluster, set_as_default=False) as client:
             yield client
         return
     address = scheduler.strip()
     if not address:
         raise InputError("scheduler address is empty; give tcp://HOST:PORT, 'synchronous', or nothing")
+    failure = None
     try:
-        client = Client(address, timeout=connect_timeout_s)
+        client = Client(address, timeout=connect_timeout_s, set_as_default=False)
     except (OSError, ValueError, TimeoutError) as exc:
+        failure = str(exc)
+    if failure is not None:
+        # The Client that failed to connect is left in a reference cycle; if the
+        # garbage collector ran its __del__ later, inside the start of another
+        # cluster, the two would deadlock on distributed's loop-runner lock.
+        # Collect it here, where no lock is held.
+        gc.collect()
         raise InputError(
-            f"cannot reach the Dask scheduler at {address!r} within {connect_timeout_s:g} s ({exc}); "
+            f"cannot reach the Dask scheduler at {address!r} within {connect_timeout_s:g} s ({failure}); "
             "start one with 'dask scheduler' and workers with 'dask worker ADDRESS', "
             "or leave --scheduler out to run on a local cluster"
-        ) from None
+        )
     try:
         yield client
     finally:

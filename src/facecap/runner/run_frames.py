@@ -36,7 +36,7 @@ from ..errors import FacecapWarning, FileFormatError, InputError, SolverError
 from ..io._atomic import atomic_path, atomic_write_text
 from .connect_scheduler import SYNCHRONOUS, connect_scheduler
 from .frame_stage import FrameStage, stage_identity
-from .plan_chunks import FrameChunk, plan_chunks
+from .plan_chunks import FrameChunk, _positive_int, plan_chunks
 from .run_chunk import chunk_file_name, read_chunk, run_chunk
 
 __all__ = ["MANIFEST_FILE", "MANIFEST_FORMAT", "FrameRun", "run_frames"]
@@ -235,6 +235,9 @@ def run_frames(
     chunks = plan_chunks(n_frames, chunk_frames=chunk_frames, segment_chunks=segment_chunks)
     if scheduler is not None and not isinstance(scheduler, str):
         raise InputError(f"scheduler must be None, 'synchronous' or an address string; got {type(scheduler).__name__}")
+    _positive_int(n_workers, "n_workers")
+    if not (isinstance(connect_timeout_s, (int, float)) and connect_timeout_s > 0):
+        raise InputError(f"connect_timeout_s must be a positive number of seconds; got {connect_timeout_s!r}")
     identity = stage_identity(stage)
     manifest: dict[str, Any] = {
         "format": MANIFEST_FORMAT,
@@ -443,7 +446,8 @@ def _run_on_cluster(
         futures[future] = chunk
         by_index[chunk.index] = future
     try:
-        for future in as_completed(list(futures)):
+        # This client's loop: as_completed would otherwise take the process's default client's.
+        for future in as_completed(list(futures), loop=client.loop):
             chunk = futures[future]
             try:
                 future.result()
