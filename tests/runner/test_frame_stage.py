@@ -51,7 +51,10 @@ def test_a_closure_is_identified_through_cloudpickle() -> None:
         return {"x": np.arange(start, stop) + offset}, None
 
     identity = stage_identity(stage)
-    assert identity["stage"].endswith("function") and len(identity["pickle_sha256"]) == 64
+    assert identity["stage"] == (
+        "test_frame_stage.test_a_closure_is_identified_through_cloudpickle.<locals>.stage"
+    )
+    assert len(identity["pickle_sha256"]) == 64
 
 
 def test_bad_stages_are_clear_errors() -> None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import hashlib
 import json
 import pickle
+import types
 from collections.abc import Mapping
 from typing import Any, Protocol, runtime_checkable
 
@@ -101,8 +102,8 @@ def stage_identity(stage: Any) -> dict[str, Any]:
     """
     if not callable(stage):
         raise InputError(f"stage must be callable as stage(start, stop, state); got {type(stage).__name__}")
-    kind = type(stage)
-    identity: dict[str, Any] = {"stage": f"{kind.__module__}.{kind.__qualname__}"}
+    named = stage if isinstance(stage, types.FunctionType) else type(stage)
+    identity: dict[str, Any] = {"stage": f"{named.__module__}.{named.__qualname__}"}
     parameters = getattr(stage, "parameters", None)
     if callable(parameters):
         values = parameters()

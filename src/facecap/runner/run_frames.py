@@ -34,7 +34,7 @@ from tqdm.auto import tqdm
 
 from ..errors import FacecapWarning, FileFormatError, InputError, SolverError
 from ..io._atomic import atomic_path, atomic_write_text
-from .connect_scheduler import SYNCHRONOUS, connect_scheduler
+from .connect_scheduler import connect_scheduler
 from .frame_stage import FrameStage, stage_identity
 from .plan_chunks import FrameChunk, _positive_int, plan_chunks
 from .run_chunk import chunk_file_name, read_chunk, run_chunk
@@ -462,7 +462,10 @@ def _run_on_cluster(
                 raise
             bar.update(1)
     finally:
-        client.cancel([*futures, stage_future])
+        # Release the tasks (and stop the pending ones after an error); a failure to
+        # reach the scheduler here must not hide the error that brought us here.
+        with contextlib.suppress(Exception):
+            client.cancel([*futures, stage_future])
 
 
 def _array_specs(
