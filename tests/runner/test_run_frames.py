@@ -96,7 +96,8 @@ def test_a_worker_killed_mid_chunk_changes_no_frame(tmp_path: Path, truth: np.nd
         run = run_frames(_stage(log_dir), N_FRAMES, work, chunk_frames=CHUNK, scheduler=cluster.scheduler_address,
                          progress=False)
         thread.join(timeout=5)
-        assert len(watcher.run(os.getpid)) == 2  # the nanny replaced the killed worker
+        watcher.wait_for_workers(2, timeout=30)  # the nanny replaced the killed worker
+        assert killed.get("pid") not in watcher.run(os.getpid).values()
 
     assert killed, "no worker was killed while a chunk ran (the run finished first?)"
     assert 3 <= killed["finished"] < N_FRAMES // CHUNK
