@@ -126,3 +126,33 @@ def test_unknown_export_format(capture_case, tmp_path, capsys):
     assert _animate(capture_case, tmp_path / "result", "--export", "fbx") == 2
     _one_line_error(capsys, "fbx")
     assert not (tmp_path / "result").exists()
+
+
+def test_synth_writes_a_case_and_its_footage(tmp_path, capsys):
+    import json as _json
+
+    import numpy as np
+
+    from facecap.cameras import open_footage, read_camera_file
+    from facecap.io import read_markers, read_mesh
+
+    assert main(["-q", "synth", "--out", str(tmp_path / "a"), "--frames", "12", "--seed", "2"]) == 0
+    assert main(["-q", "synth", "--out", str(tmp_path / "b"), "--frames", "12", "--seed", "2", "--identity", "4"]) == 0
+    take = read_markers(tmp_path / "a" / "take.c3d")
+    truth = np.load(tmp_path / "a" / "truth.npz")
+    assert take.n_frames == 12 and truth["vertices"].shape[0] == 12
+    a, b = read_mesh(tmp_path / "a" / "scan.obj"), read_mesh(tmp_path / "b" / "scan.obj")
+    assert a.n_vertices == b.n_vertices and np.abs(a.vertices - b.vertices).max() > 1.0  # another actor
+    assert len(_json.loads((tmp_path / "a" / "map.json").read_text())) == take.n_markers - 4  # less the head band
+
+    assert main(["-q", "synth", "--out", str(tmp_path / "f"), "--frames", "5", "--footage"]) == 0
+    setup = read_camera_file(tmp_path / "f" / "cameras.json")
+    assert len(setup.cameras) == 2 and setup.video_rate_hz == 12.5
+    for camera in setup.cameras:
+        with open_footage(tmp_path / "f" / camera.name) as footage:
+            assert len(footage) == 2 and footage.frame(0).shape[:2] == (camera.height, camera.width)
+    truth = np.load(tmp_path / "f" / "truth.npz")
+    assert truth["vertices"].shape == truth["large_scale"].shape and truth["wrinkle_mask"].any()
+
+    assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "1"]) == 2
+    assert "--frames" in capsys.readouterr().err and not (tmp_path / "bad").exists()

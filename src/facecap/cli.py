@@ -399,6 +399,45 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_synth(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("synth", help="generate a capture case with dense ground truth (and wrinkle footage)")
+    p.add_argument("--out", required=True, help="folder to write (scan.obj, take.c3d, map.json, truth.npz)")
+    p.add_argument("--seed", type=int, default=0, help="the take, markers, noise (and wrinkles, skin, sensor) [0]")
+    p.add_argument("--frames", type=int, default=300, help="mocap frames [300]")
+    p.add_argument("--identity", type=int, default=0,
+                   help="0: the ICT generic face; K >= 1: a random ICT identity drawn from seed K [0]")
+    p.add_argument("--footage", action="store_true",
+                   help="wrinkles on a subdivided scan, filmed by two calibrated cameras at 12.5 fps (mocap at 50 Hz): "
+                        "cameras.json, OpenCV calibration files, image folders, paint masks, wrinkle truth")
+    p.set_defaults(func=_cmd_synth)
+
+
+def _cmd_synth(args: argparse.Namespace) -> int:
+    from .io._atomic import atomic_folder
+    from .synth.generate_performance import generate_performance, random_identity
+    from .synth.ict_sample import load_ict_sample
+
+    if args.frames < 2:
+        raise FacecapError(f"--frames: expected at least 2, got {args.frames}")
+    if args.identity < 0:
+        raise FacecapError(f"--identity: expected 0 or a positive seed, got {args.identity}")
+    identity = random_identity(args.identity) if args.identity else None
+    with atomic_folder(args.out, marker_file="truth.npz") as stage:
+        if args.footage:
+            from .synth.write_footage_case import write_footage_case
+
+            write_footage_case(stage, n_frames=args.frames, seed=args.seed, identity=identity, progress=not args.quiet)
+        else:
+            from .synth.write_synthetic_case import write_synthetic_case
+
+            sample = load_ict_sample()
+            case = generate_performance(n_frames=args.frames, seed=args.seed, identity=identity, sample=sample)
+            write_synthetic_case(case, stage, region_labels=sample.region_labels, region_names=list(sample.region_names))
+    if not args.quiet:
+        print(f"wrote {args.out}: {args.frames} frames" + (", wrinkle footage from two cameras" if args.footage else ""))
+    return 0
+
+
 def _add_demo(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="run the main job on the bundled sample, writing facecap-demo/")
     p.add_argument("--out", default="facecap-demo", help="output folder [facecap-demo]")
@@ -431,6 +470,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_export(sub)
     _add_view(sub)
     _add_scan_commands(sub)
+    _add_synth(sub)
     _add_demo(sub)
     for action in sub.choices.values():  # let -q/--quiet also follow the command
         action.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,

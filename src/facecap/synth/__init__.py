@@ -53,6 +53,8 @@ from .generate_performance import (
     SyntheticCase,
     generate_performance,
     named_curves,
+    random_identity,
+    RANDOM_IDENTITY_SD,
     vertex_normals_at,
 )
 from .capture_colors import capture_colors, srgb_decode, srgb_encode
@@ -71,6 +73,8 @@ from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion,
 from .write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, FootageFiles, stage_cameras, write_footage_case
 
 __all__ = [
+    "random_identity",
+    "RANDOM_IDENTITY_SD",
     "load_ict_sample",
     "bundled_path",
     "IctSample",

@@ -21,7 +21,7 @@ from .real_motion_curves import REAL_CURVE_NAMES, real_motion_curves
 from .speech_curves import speech_expression_curves
 
 __all__ = ["CURVE_GENERATORS", "HEAD_PIVOTS_MM", "SyntheticCase", "generate_performance", "named_curves",
-           "vertex_normals_at"]
+           "vertex_normals_at", "random_identity", "RANDOM_IDENTITY_SD"]
 
 DEFAULT_FRAMES = 240
 DEFAULT_MARKERS = 90
@@ -338,6 +338,20 @@ def _count(x: Any, name: str, *, minimum: int) -> int:
     if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < minimum:
         raise InputError(f"{name}: expected an integer >= {minimum}, got {x!r}")
     return int(x)
+
+
+RANDOM_IDENTITY_SD = 0.7
+"""Spread of :func:`random_identity`'s ICT identity coefficients (clipped at +-1.3)."""
+
+
+def random_identity(seed: int, n_coefficients: int = 8) -> np.ndarray:
+    """ICT identity coefficients of a random actor (``facecap synth --identity K``): N(0, 0.7^2), clipped at +-1.3.
+
+    The spread of the benchmark's identities (``benchmarks/cases.py``), whose
+    coefficients lie within +-1.3.
+    """
+    rng = np.random.default_rng([int(seed), 0x1D])
+    return np.clip(rng.normal(scale=RANDOM_IDENTITY_SD, size=n_coefficients), -1.3, 1.3)
 
 
 def generate_performance(
