@@ -153,3 +153,15 @@ def test_view_writes_the_pages_with_the_true_error(capture_case, tmp_path, capsy
     assert main(["view", str(tmp_path / "not_a_result"), "--no-serve"]) == 2
     assert "not a finished facecap result" in capsys.readouterr().err
     assert list((tmp_path / "not_a_result").iterdir()) == []
+
+
+def test_a_missing_optional_writer_stops_the_run_before_it_starts(capture_case, tmp_path, capsys, monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "alembic3d", None)  # `import alembic3d` raises ImportError
+    status = main(["animate", "--scan", str(capture_case.scan_path), "--markers", str(capture_case.markers_path),
+                   "--map", str(capture_case.map_path), "--out", str(tmp_path / "out"), "--export", "abc"])
+    assert status == 2
+    err = capsys.readouterr().err
+    assert 'pip install "facecap[alembic]"' in err and "factoring" not in err  # refused before the shell set-up
+    assert not (tmp_path / "out").exists()

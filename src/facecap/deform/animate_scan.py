@@ -14,6 +14,7 @@ import numpy as np
 
 from ..errors import FacecapWarning, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
+from ..io.export_result import parse_export_formats
 from ..io.result_rig import ResultRig
 from ..io.write_performance import PerformanceWriter
 from ..markers.condition_take import condition_take
@@ -286,6 +287,7 @@ def animate_scan(
         :func:`facecap.units.check_take_units`, which can also convert.
     """
     check_take_units(scan, markers, correspondence, rest_frame=rest_frame)
+    exports = parse_export_formats(exports)  # names and optional packages, before the set-up
     timings: dict[str, float] = {}
     caught: list[str] = []
     marker_offset_mm = as_positive(marker_offset_mm, name="marker_offset_mm", allow_zero=True)

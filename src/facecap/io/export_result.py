@@ -53,13 +53,18 @@ def parse_export_formats(text: str | Iterable[str]) -> list[str]:
     Raises
     ------
     InputError
-        Naming the unknown formats and the known ones.
+        Naming the unknown formats and the known ones, or the package an
+        optional format needs (Alembic: ``facecap[alembic]``).
     """
     items = [s.strip().lower() for s in (text.split(",") if isinstance(text, str) else text)]
     formats = list(dict.fromkeys(s for s in items if s))
     unknown = [f for f in formats if f not in EXPORT_FORMATS]
     if unknown:
         raise InputError(f"--export: unknown format(s) {unknown}; choose from {', '.join(EXPORT_FORMATS)}")
+    if "abc" in formats:  # the optional writer's package, checked before any long work
+        from .write_alembic import _import_alembic
+
+        _import_alembic()
     return formats
 
 

@@ -133,6 +133,10 @@ class PerformanceWriter:
         unknown = [e for e in self.exports if e not in EXPORT_FORMATS]
         if unknown:
             raise InputError(f"--export: unknown format(s) {unknown}; choose from {list(EXPORT_FORMATS)}")
+        if "abc" in self.exports:  # before the frames, not after them: a missing optional package loses no work
+            from .write_alembic import _import_alembic
+
+            _import_alembic()
         self._folder = atomic_folder(self.out_dir, marker_file=_MARKER_FILE)
         self.staging = self._folder.__enter__()
         self._unit_scale = np.float32(1.0 / mm_per_unit(mesh.source_unit))
