@@ -511,3 +511,49 @@ def test_facecap_export_in_blender(exported: dict, name: str) -> None:
     """Each file `facecap export` writes shows the result's frames in Blender (USD, glTF, Alembic: with its head motion)."""
     r = _result(exported, name)
     _check_positions(r, keeps_order=name != "gltf")
+
+
+@pytest.fixture(scope="module")
+def principal(blender: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict]:
+    """A blend of nine shapes exported with fewer components than its rank: the principal-component forms.
+
+    The truth is the result's own frames; each export's stated error
+    (``performance.json`` ``exports_report``) is the bound Blender must stay within.
+    """
+    from analytic_case import curved_grid
+    from facecap.blendshapes import write_blended_performance
+
+    d = tmp_path_factory.mktemp("blender_principal")
+    V, F = curved_grid(15)
+    rng = np.random.default_rng(11)
+    bases = V[None] + rng.normal(scale=2.0, size=(8, 1, 3)) * np.sin(V[None, :, :1] / rng.uniform(10, 40, (8, 1, 1)))
+    weights = rng.dirichlet(np.ones(8), size=N_FRAMES)
+    folder = d / "out"
+    write_blended_performance(folder, Mesh(V, F), bases, weights, rate=RATE, progress=False)
+    report = export_result(folder, "usd,gltf", usd_shapes=3, gltf_targets=3)
+    result = read_result(folder)
+    frames = result.frames().astype(np.float64)
+    checked = (0, N_FRAMES // 2, N_FRAMES - 1)
+    out = d / "blender"
+    out.mkdir()
+    jobs = [_job("usd", "usd", folder / "performance_rig.usdc", out, options={}, take_frames=checked),
+            _job("gltf", "gltf", folder / "performance.glb", out, options={}, take_frames=checked, mesh_object="Face")]
+    spacing_mm = float(np.linalg.norm(V[1] - V[0]))
+    results = _run_probe(blender, out, jobs, {"usd": frames, "gltf": frames}, spacing_mm=spacing_mm, result=result)
+    for name, fmt in (("usd", "usd"), ("gltf", "gltf")):
+        results[name]["stated_max_mm"] = report[fmt]["error"]["max_mm"]
+    return results
+
+
+@pytest.mark.parametrize("name", ["usd", "gltf"])
+def test_principal_component_exports_in_blender_stay_within_their_stated_error(principal: dict, name: str) -> None:
+    r = _result(principal, name)
+    bound = r["stated_max_mm"]
+    assert bound > 0.05  # three components cannot rebuild nine: this checks the bound, not exactness
+    job = r["job"]
+    first = to_blender(r["truth"][job["take_frames"][0]])
+    mapping = vertex_map(r["arrays"][f"frame_{job['frames'][0]}"], first, tolerance_m=(bound + TOLERANCE_MM) / 1000.0,
+                         separation_m=0.5 * r["spacing_mm"] / 1000.0)
+    errors = frame_errors_mm(r, mapping)
+    print(f"{name} (3 principal components): max error (mm) per Blender frame {errors}, stated {bound:.4f}")
+    assert max(errors.values()) <= bound + TOLERANCE_MM, errors
