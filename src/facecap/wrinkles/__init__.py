@@ -1,0 +1,42 @@
+"""Expression wrinkles from video (Bickel et al. 2007, section 5).
+
+- :class:`PaintClassifier`, :func:`train_paint_classifier`, :func:`classify_paint`,
+  :func:`clean_paint_labels`, :func:`separate_paint_colors`, :func:`paint_features`
+  (``wrinkle_masks.py``): which pixels wear which paint (section 5.1).
+- :class:`WrinkleSpline`, :func:`fit_wrinkle_spline`, :func:`darkness_weights`,
+  :func:`control_points_for_length` (``wrinkle_splines.py``): a patch's valley as the
+  weighted uniform cubic B-spline of eq. 5 along its principal axis.
+- :func:`track_wrinkles`, :class:`WrinkleTracker`, :class:`TrackedWrinkle`,
+  :class:`WrinkleTrackingWarning` (``track_wrinkles.py``): one camera's footage to
+  valley splines per frame, each wrinkle keeping its identity (section 5.1).
+"""
+
+from __future__ import annotations
+
+from .wrinkle_masks import (
+    PaintClassifier,
+    classify_paint,
+    clean_paint_labels,
+    paint_features,
+    separate_paint_colors,
+    train_paint_classifier,
+)
+from .wrinkle_splines import WrinkleSpline, control_points_for_length, darkness_weights, fit_wrinkle_spline
+from .track_wrinkles import TrackedWrinkle, WrinkleTracker, WrinkleTrackingWarning, track_wrinkles
+
+__all__ = [
+    "PaintClassifier",
+    "train_paint_classifier",
+    "classify_paint",
+    "clean_paint_labels",
+    "separate_paint_colors",
+    "paint_features",
+    "WrinkleSpline",
+    "fit_wrinkle_spline",
+    "darkness_weights",
+    "control_points_for_length",
+    "track_wrinkles",
+    "WrinkleTracker",
+    "TrackedWrinkle",
+    "WrinkleTrackingWarning",
+]
