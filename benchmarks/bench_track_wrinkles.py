@@ -72,7 +72,9 @@ def evaluate(case: Path, weighting: str) -> dict:
                 curve = w.curve(64)
                 if w.wrinkle not in matched:  # the truth curve of its paint nearest in frame 0
                     candidates = np.flatnonzero(paint == w.color)
-                    scores = [curve_error(curve, camera.project(X[c]).pixels) for c in candidates]
+                    # whole curves both ways (ends included): a neighbour that overlaps only in part scores badly
+                    scores = [np.mean(polyline_distance(camera.project(X[c]).pixels, curve)[0])
+                              + np.mean(polyline_distance(curve, camera.project(X[c]).pixels)[0]) for c in candidates]
                     matched[w.wrinkle] = int(candidates[int(np.nanargmin(scores))])
                 c = matched[w.wrinkle]
                 frame_errors[w.wrinkle] = curve_error(curve, camera.project(X[c]).pixels)
@@ -91,7 +93,7 @@ def evaluate(case: Path, weighting: str) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("cases", nargs="+", type=Path)
-    parser.add_argument("--weighting", default="darkness")
+    parser.add_argument("--weighting", default="uniform", choices=["uniform", "darkness"])
     args = parser.parse_args()
     for case in args.cases:
         print(case, json.dumps(evaluate(case, args.weighting), indent=1))

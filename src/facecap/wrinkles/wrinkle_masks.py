@@ -140,6 +140,8 @@ def _label_image(image: FloatArray, mask: Any, n_colors: int | None) -> IntArray
         for i, m in enumerate(masks):
             if m.shape != (H, W):
                 raise InputError(f"mask {i}: shape {m.shape} does not match the image's {(H, W)}")
+            if not np.any(m > 0):
+                raise InputError(f"mask {i}: paint colour {i} has no pixel (the mask is empty)")
             labels[(m > 0) & (labels == 0)] = i + 1
         return labels
     M = np.asarray(mask)
