@@ -60,7 +60,7 @@ def evaluate(case: Path, weighting: str) -> dict:
         classifier = train_paint_classifier(footage.frame(0), mask)
         train_s = time.perf_counter() - t0
         tracker = WrinkleTracker(classifier, camera=name, weighting=weighting)
-        errors, times, matched = [], [], {}
+        errors, times, matched, elongated = [], [], {}, []
         for j, image in enumerate(footage):
             t = j * step
             t0 = time.perf_counter()
@@ -78,10 +78,13 @@ def evaluate(case: Path, weighting: str) -> dict:
                     matched[w.wrinkle] = int(candidates[int(np.nanargmin(scores))])
                 c = matched[w.wrinkle]
                 frame_errors[w.wrinkle] = curve_error(curve, camera.project(X[c]).pixels)
+                if w.spline.elongation >= 3.0:
+                    elongated.append(frame_errors[w.wrinkle])
             errors.append(frame_errors)
         flat = np.array([v for e in errors for v in e.values()])
         out[name] = {
-            "mean_px": float(np.nanmean(flat)), "median_px": float(np.nanmedian(flat)), "max_px": float(np.nanmax(flat)),
+            "mean_px": float(np.nanmean(flat)),
+            "mean_px_elongation_3_or_more": float(np.nanmean(elongated)), "share_elongation_3_or_more": len(elongated) / flat.size, "median_px": float(np.nanmedian(flat)), "max_px": float(np.nanmax(flat)),
             "per_wrinkle_mean_px": {str(truth["curve_names"][c]): float(np.nanmean([e[i] for e in errors if i in e]))
                                     for i, c in sorted(matched.items())},
             "wrinkles": tracker.n_wrinkles, "frames": len(errors),

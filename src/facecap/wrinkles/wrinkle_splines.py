@@ -46,6 +46,13 @@ class WrinkleSpline:
     def n_control(self) -> int:
         return int(self.control_points.shape[0])
 
+    @property
+    def elongation(self) -> float:
+        """Length over width, ``(x_hi - x_lo) / (2 half_width)``: a valley-shaped patch is long and thin;
+        one near 1-2 is cut short (by the face's silhouette, the image border) or seen end-on, and
+        its principal axis need not follow the wrinkle."""
+        return float((self.x_range[1] - self.x_range[0]) / max(2.0 * self.half_width, 1e-9))
+
     def knots(self) -> FloatArray:
         return _uniform_knots(self.x_range[0], self.x_range[1], self.n_control)
 
