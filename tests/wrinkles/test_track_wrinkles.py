@@ -19,6 +19,7 @@ from facecap.wrinkles import (
     WrinkleTracker,
     WrinkleTrackingWarning,
     classify_paint,
+    mask_from_color_picks,
     separate_paint_colors,
     track_wrinkles,
     train_paint_classifier,
@@ -98,6 +99,23 @@ def test_a_wrinkle_leaving_the_image_is_flagged() -> None:
     image_gone = np.broadcast_to(image[0, 0], image.shape).copy()  # every stripe gone
     with pytest.warns(WrinkleTrackingWarning, match="was not found"):
         assert tracker.track(image_gone) == []
+
+
+def test_colour_picks_make_the_mask_and_train_as_well() -> None:
+    """One picked pixel per paint: the mask covers the stripes' interiors, and its classifier labels a new frame."""
+    from scipy.ndimage import maximum_filter, minimum_filter
+
+    image, labels, curves = _two_stripes()
+    picks = np.array([curves[0][1000], curves[2][1000]])  # on the blue and the green stripe's centre lines
+    mask = mask_from_color_picks(image, picks)
+    clear = maximum_filter(labels, size=5) == minimum_filter(labels, size=5)
+    assert np.mean(mask[clear] == labels[clear]) > 0.995
+    moved, truth, _ = _two_stripes((5.0, 3.0), seed=7)
+    found = classify_paint(train_paint_classifier(image, mask), moved)
+    clear = maximum_filter(truth, size=5) == minimum_filter(truth, size=5)
+    assert np.mean(found[clear] == truth[clear]) > 0.999
+    with pytest.raises(InputError, match="outside"):
+        mask_from_color_picks(image, [[320, 10]])
 
 
 def test_a_mask_with_no_pixel_of_a_colour_is_refused() -> None:

@@ -47,6 +47,8 @@ def test_a_drawn_stripe_gives_its_centre_curve(slope: float, bend: float) -> Non
     rows, cols = np.nonzero(mask == 1)
     spline = fit_wrinkle_spline(np.stack([cols, rows], axis=1).astype(float))
     assert spline.half_width == pytest.approx(6.0, abs=0.5)  # the stripe's half-width from the pixels' spread
+    length = np.sum(np.linalg.norm(np.diff(centre, axis=0), axis=1))
+    assert spline.elongation == pytest.approx((length + 12.0) / 12.0, rel=0.12)  # its round caps included
     tracked = spline.sample(200, trim=spline.half_width)  # the round caps left out
     d, interior = polyline_distance(tracked, centre)
     assert interior.all()  # trimmed by the half-width, the curve ends inside the true one

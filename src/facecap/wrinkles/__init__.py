@@ -1,8 +1,8 @@
 """Expression wrinkles from video (Bickel et al. 2007, section 5).
 
 - :class:`PaintClassifier`, :func:`train_paint_classifier`, :func:`classify_paint`,
-  :func:`clean_paint_labels`, :func:`separate_paint_colors`, :func:`paint_features`
-  (``wrinkle_masks.py``): which pixels wear which paint (section 5.1).
+  :func:`clean_paint_labels`, :func:`separate_paint_colors`, :func:`paint_features`,
+  :func:`mask_from_color_picks` (``wrinkle_masks.py``): which pixels wear which paint (section 5.1).
 - :class:`WrinkleSpline`, :func:`fit_wrinkle_spline`, :func:`darkness_weights`,
   :func:`control_points_for_length` (``wrinkle_splines.py``): a patch's valley as the
   weighted uniform cubic B-spline of eq. 5 along its principal axis.
@@ -17,6 +17,7 @@ from .wrinkle_masks import (
     PaintClassifier,
     classify_paint,
     clean_paint_labels,
+    mask_from_color_picks,
     paint_features,
     separate_paint_colors,
     train_paint_classifier,
@@ -31,6 +32,7 @@ __all__ = [
     "clean_paint_labels",
     "separate_paint_colors",
     "paint_features",
+    "mask_from_color_picks",
     "WrinkleSpline",
     "fit_wrinkle_spline",
     "darkness_weights",

@@ -24,6 +24,7 @@ __all__ = [
     "clean_paint_labels",
     "separate_paint_colors",
     "paint_features",
+    "mask_from_color_picks",
 ]
 
 LUT_BINS = 64
@@ -131,6 +132,48 @@ def separate_paint_colors(image: Any, mask: Any, *, n_colors: int | None = None,
     return labels
 
 
+def mask_from_color_picks(image: Any, picks: Any, *, tolerance: float = 0.04, radius_px: int = 2) -> IntArray:
+    """A paint mask made from colour picks: one picked pixel per paint instead of a painted mask.
+
+    Parameters
+    ----------
+    image : (H, W, 3) array
+        The first frame, RGB.
+    picks : (k, 2) int array, px
+        ``(u, v)`` (column, row) of one pixel on each paint, in paint order.
+    tolerance : float, default 0.04
+        Largest chromaticity distance (``(r, g) / (r + g + b)``, which shading scales out) from
+        the picked colour; a pixel near two picks takes the nearer.
+    radius_px : int, default 2
+        The picked colour is the mean over this radius around each pick (noise).
+
+    Returns
+    -------
+    (H, W) int64 array
+        0 elsewhere, ``1 + i`` on paint ``i``: a mask for :func:`train_paint_classifier`.
+
+    Raises
+    ------
+    InputError
+        If a pick lies outside the image.
+    """
+    rgb = _as_rgb(image)
+    H, W = rgb.shape[:2]
+    P = np.asarray(picks)
+    if P.ndim != 2 or P.shape[1] != 2 or P.shape[0] < 1:
+        raise InputError(f"picks: expected (k, 2) pixel positions (u, v), got shape {P.shape}")
+    chroma = paint_features(rgb)[..., 3:]
+    picked = []
+    for i, (u, v) in enumerate(np.round(P).astype(np.int64)):
+        if not (0 <= u < W and 0 <= v < H):
+            raise InputError(f"picks: pick {i} at (u, v) = ({u}, {v}) is outside the {W}x{H} image")
+        window = chroma[max(v - radius_px, 0):v + radius_px + 1, max(u - radius_px, 0):u + radius_px + 1]
+        picked.append(window.reshape(-1, 2).mean(axis=0))
+    distance = np.linalg.norm(chroma[:, :, None, :] - np.asarray(picked)[None, None], axis=-1)
+    nearest = distance.argmin(axis=-1)
+    return np.where(distance.min(axis=-1) <= tolerance, nearest + 1, 0).astype(np.int64)
+
+
 def _label_image(image: FloatArray, mask: Any, n_colors: int | None) -> IntArray:
     """Any of the accepted mask forms as one label image (0 bare, 1 + i paint i)."""
     H, W = image.shape[:2]
@@ -213,7 +256,7 @@ def train_paint_classifier(first_frame_image: Any, mask: Any, *, n_colors: int |
         The frame the mask was painted on, RGB.
     mask : (H, W) array, or sequence of (H, W) arrays
         One of: a label image (0 bare skin, ``1 + i`` where paint ``i`` covers the pixel: the
-        generator's ``mask_<cam>.png``); a binary mask (bool, or 0 and 255) covering every paint,
+        generator's ``mask_<cam>.png``, or :func:`mask_from_color_picks`'); a binary mask (bool, or 0 and 255) covering every paint,
         whose colours are then separated by :func:`separate_paint_colors`; or one binary mask
         per colour.
     n_colors : int, optional
