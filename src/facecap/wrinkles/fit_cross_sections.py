@@ -30,6 +30,7 @@ DEFAULT_CHROMA_TOLERANCE = 0.06
 DEFAULT_DETECTION_THRESHOLD = 25.0
 DEFAULT_ROUNDING = 2.0
 _GRID_WIDTHS = 12
+_TREND = [True]
 _GRID_RATIOS = (0.0, 0.04, 0.08, 0.14, 0.22, 0.32, 0.45, 0.65, 0.9)
 
 
@@ -44,6 +45,8 @@ class ProfileFit(NamedTuple):
         Depth ``d``; 0 where no wrinkle is detected.
     has_wrinkle : (n,) bool array
         The fitted valley explains the profile significantly better than a flat surface.
+    offset : (n,) float64 array, mm
+        Where the valley line lies on the profile (0: where the spline put it).
     ambient : (n,) float64 array
         ``I_ambient`` in the image's units: the unshadowed level (the paper's ``I_obs(m)``).
     rms : (n,) float64 array
@@ -55,6 +58,7 @@ class ProfileFit(NamedTuple):
     width: FloatArray
     depth: FloatArray
     has_wrinkle: BoolArray
+    offset: FloatArray
     ambient: FloatArray
     rms: FloatArray
     iterations: int
@@ -123,14 +127,14 @@ def _residuals(log_w: FloatArray, ratio: FloatArray, p: FloatArray, y: FloatArra
     sees more sky than its nose side).
     """
     w = np.exp(log_w)[:, None]
-    model = wedge_intensity(p[None, :], w, ratio[:, None] * w, rounding=rounding)
+    model = wedge_intensity(p, w, ratio[:, None] * w, rounding=rounding)
     A = weights * model
-    B = A * p[None, :]
+    B = A * p
     wy = weights * y
     aa, ab, bb = (A * A).sum(1), (A * B).sum(1), (B * B).sum(1)
     ay, by = (A * wy).sum(1), (B * wy).sum(1)
     det = aa * bb - ab * ab
-    ok = det > 1e-12 * np.maximum(aa * bb, 1e-300)
+    ok = (det > 1e-12 * np.maximum(aa * bb, 1e-300)) & _TREND[0]
     safe = np.where(ok, det, 1.0)
     level = np.where(ok, (bb * ay - ab * by) / safe, ay / np.maximum(aa, 1e-300))
     trend = np.where(ok, (aa * by - ab * ay) / safe, 0.0)
@@ -140,7 +144,7 @@ def _residuals(log_w: FloatArray, ratio: FloatArray, p: FloatArray, y: FloatArra
 def fit_profiles(p: object, intensity: object, *, valid: object = None,
                  width_range_mm: tuple[float, float] = DEFAULT_WIDTH_RANGE_MM, iterations: int = 12,
                  detection_threshold: float = DEFAULT_DETECTION_THRESHOLD,
-                 rounding: float = DEFAULT_ROUNDING) -> ProfileFit:
+                 rounding: float = DEFAULT_ROUNDING, fit_offset: bool = False) -> ProfileFit:
     """Fit ``S(w, d, p)`` to intensity profiles across valleys: eq. 7 by batched Gauss-Newton.
 
     Parameters
@@ -197,49 +201,52 @@ def fit_profiles(p: object, intensity: object, *, valid: object = None,
     count = weights.sum(1)
     usable = count >= 8
 
+    def residuals(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
+        shift = theta[:, 2:3] if fit_offset else np.zeros((1, 1))
+        return _residuals(theta[:, 0], theta[:, 1], P[None, :] - shift, y, weights, rounding)
+
     # initial grid: every (w, d/w) pair for every profile at once, the best kept
+    m = 3 if fit_offset else 2
     log_grid = np.linspace(np.log(w_lo * 1.2), np.log(w_hi / 1.2), _GRID_WIDTHS)
     best_cost = np.full(n, np.inf)
-    log_w = np.full(n, log_grid[0])
-    ratio = np.zeros(n)
+    theta = np.zeros((n, m))
     for lw in log_grid:
         for r in _GRID_RATIOS:
-            res, _ = _residuals(np.full(n, lw), np.full(n, r), P, y, weights, rounding)
+            trial = np.zeros((n, m))
+            trial[:, 0], trial[:, 1] = lw, r
+            res, _ = residuals(trial)
             cost = (res * res).sum(1)
             better = cost < best_cost
             best_cost = np.where(better, cost, best_cost)
-            log_w = np.where(better, lw, log_w)
-            ratio = np.where(better, r, ratio)
+            theta[better] = trial[better]
 
-    h_log, h_ratio = 1e-4, 1e-5
+    steps = np.array([1e-4, 1e-5, 1e-4])[:m]  # forward-difference steps: log w, d/w, offset (mm)
+    limits = np.array([0.5, 0.3, 0.3])[:m]  # largest step per iteration
     bounds = (np.log(w_lo), np.log(w_hi))
-    res, _ = _residuals(log_w, ratio, P, y, weights, rounding)
+    res, _ = residuals(theta)
     cost = (res * res).sum(1)
     for _ in range(int(iterations)):
-        # forward differences; at d/w = 0 the model is flat in w, so the step in d/w leads
-        J_w = (_residuals(log_w + h_log, ratio, P, y, weights, rounding)[0] - res) / h_log
-        J_r = (_residuals(log_w, ratio + h_ratio, P, y, weights, rounding)[0] - res) / h_ratio
-        a = (J_w * J_w).sum(1) + 1e-12
-        b = (J_w * J_r).sum(1)
-        c = (J_r * J_r).sum(1) + 1e-12
-        g_w = -(J_w * res).sum(1)
-        g_r = -(J_r * res).sum(1)
-        det = a * c - b * b
-        det = np.where(np.abs(det) > 1e-18 * a * c, det, np.inf)
-        step_w = (c * g_w - b * g_r) / det
-        step_r = (a * g_r - b * g_w) / det
-        step_w = np.clip(step_w, -0.5, 0.5)
-        step_r = np.clip(step_r, -0.3, 0.3)
+        J = np.empty((n, k, m))
+        for j in range(m):
+            moved = theta.copy()
+            moved[:, j] += steps[j]
+            J[:, :, j] = (residuals(moved)[0] - res) / steps[j]
+        JtJ = np.einsum("nki,nkj->nij", J, J) + 1e-12 * np.eye(m)
+        g = -np.einsum("nki,nk->ni", J, res)
+        step = np.linalg.solve(JtJ, g[..., None])[..., 0]  # batched m x m normal equations
+        step = np.clip(np.nan_to_num(step), -limits, limits)
         accepted = np.zeros(n, dtype=bool)
         scale = 1.0
         for _half in range(5):
-            trial_w = np.clip(log_w + scale * step_w, *bounds)
-            trial_r = np.maximum(ratio + scale * step_r, 0.0)
-            trial_res, _ = _residuals(trial_w, trial_r, P, y, weights, rounding)
+            trial = theta + scale * step
+            trial[:, 0] = np.clip(trial[:, 0], *bounds)
+            trial[:, 1] = np.maximum(trial[:, 1], 0.0)
+            if fit_offset:
+                trial[:, 2] = np.clip(trial[:, 2], -np.exp(trial[:, 0]), np.exp(trial[:, 0]))
+            trial_res, _ = residuals(trial)
             trial_cost = (trial_res * trial_res).sum(1)
             take = ~accepted & (trial_cost <= cost)
-            log_w = np.where(take, trial_w, log_w)
-            ratio = np.where(take, trial_r, ratio)
+            theta[take] = trial[take]
             cost = np.where(take, trial_cost, cost)
             res = np.where(take[:, None], trial_res, res)
             accepted |= take
@@ -247,9 +254,13 @@ def fit_profiles(p: object, intensity: object, *, valid: object = None,
                 break
             scale *= 0.5
 
-    res, ambient = _residuals(log_w, ratio, P, y, weights, rounding)
+    log_w, ratio = theta[:, 0], theta[:, 1]
+    offset = theta[:, 2] if fit_offset else np.zeros(n)
+    res, ambient = residuals(theta)
     cost = (res * res).sum(1)
-    flat_res, flat_ambient = _residuals(log_w, np.zeros(n), P, y, weights, rounding)
+    flat = theta.copy()
+    flat[:, 1] = 0.0
+    flat_res, flat_ambient = residuals(flat)
     flat_cost = (flat_res * flat_res).sum(1)
     noise = cost / np.maximum(count - 3.0, 1.0)
     has_wrinkle = usable & (ratio > 0) & (flat_cost - cost > detection_threshold * np.maximum(noise, 1e-300))
@@ -257,8 +268,8 @@ def fit_profiles(p: object, intensity: object, *, valid: object = None,
     depth = np.where(has_wrinkle, ratio * width, np.where(usable, 0.0, np.nan))
     ambient = np.where(has_wrinkle, ambient, flat_ambient)
     rms = np.sqrt(np.where(has_wrinkle, cost, flat_cost) / np.maximum(count, 1.0)) / np.maximum(ambient, 1e-300)
-    return ProfileFit(width, depth, has_wrinkle, np.where(usable, ambient, np.nan), np.where(usable, rms, np.nan),
-                      int(iterations))
+    return ProfileFit(width, depth, has_wrinkle, np.where(usable, offset, np.nan), np.where(usable, ambient, np.nan),
+                      np.where(usable, rms, np.nan), int(iterations))
 
 
 def _resample_polyline(points: FloatArray, spacing_px: float) -> tuple[FloatArray, FloatArray]:
@@ -438,7 +449,8 @@ def fit_cross_sections(image: object, splines_px: Sequence[object], camera: Any,
                        half_extent_mm: float = DEFAULT_HALF_EXTENT_MM, step_mm: float = DEFAULT_SAMPLE_STEP_MM,
                        band_px: int = DEFAULT_BAND_PX, chroma_tolerance: float = DEFAULT_CHROMA_TOLERANCE,
                        width_range_mm: tuple[float, float] = DEFAULT_WIDTH_RANGE_MM, iterations: int = 12,
-                       detection_threshold: float = DEFAULT_DETECTION_THRESHOLD) -> CrossSections:
+                       detection_threshold: float = DEFAULT_DETECTION_THRESHOLD,
+                       rounding: float = DEFAULT_ROUNDING, fit_offset: bool = False) -> CrossSections:
     """Depth and width of the valley along every spline of one image (Bickel et al. 2007, 5.2).
 
     :func:`sample_cross_sections` then :func:`fit_profiles`; the options are theirs.
@@ -463,5 +475,6 @@ def fit_cross_sections(image: object, splines_px: Sequence[object], camera: Any,
                                     half_extent_mm=half_extent_mm, step_mm=step_mm, band_px=band_px,
                                     chroma_tolerance=chroma_tolerance)
     fit = fit_profiles(samples.p, samples.intensity, valid=samples.valid, width_range_mm=width_range_mm,
-                       iterations=iterations, detection_threshold=detection_threshold)
+                       iterations=iterations, detection_threshold=detection_threshold, rounding=rounding,
+                       fit_offset=fit_offset)
     return CrossSections(samples, fit)
