@@ -210,3 +210,25 @@ def test_a_binary_mask_is_split_into_the_paints(footage_case: Path) -> None:
     found = np.zeros_like(labels)
     found[painted] = cols[np.searchsorted(rows, labels[painted])]
     assert np.mean(found[inner] == mask[inner]) > 0.995
+
+
+def test_the_papers_weights_pull_the_curve_to_the_dark_valley() -> None:
+    """A stripe whose valley (darker) runs 2.5 px off its centre: uniform weights find the centre, the
+    paper's darkness weights move the curve towards the valley."""
+    centre = centre_curve(40.0, 260.0, 100.0, 0.1, 0.0005)
+    valley = centre + [0.0, 2.5]
+    image, mask = render_stripes((320, 240), [(centre, 7.0, BLUE)], noise=0.004)
+    rows, cols = np.nonzero(mask == 1)
+    d_valley, _ = polyline_distance(np.stack([cols, rows], 1).astype(float), valley)
+    shade = np.ones(mask.shape)
+    shade[rows, cols] = 1.0 - 0.3 * np.exp(-((d_valley / 1.5) ** 2))  # self-shadowing along the valley
+    dark = np.clip(np.round(image * shade[..., None]), 0, 255).astype(np.uint8)
+    classifier = train_paint_classifier(image, mask)
+    offsets = {}
+    for weighting in ("uniform", "darkness"):
+        (wrinkle,) = WrinkleTracker(classifier, weighting=weighting).track(dark)
+        curve = wrinkle.curve(100)
+        d_centre, inside = polyline_distance(curve, centre)
+        offsets[weighting] = np.mean(polyline_distance(curve[inside], valley)[0]), d_centre[inside].mean()
+    assert offsets["uniform"][1] < 0.35  # the stripe's centre
+    assert offsets["darkness"][0] < offsets["uniform"][0] - 0.5  # nearer the valley by half a pixel or more
