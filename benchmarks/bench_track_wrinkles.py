@@ -84,7 +84,8 @@ def evaluate(case: Path, weighting: str) -> dict:
         flat = np.array([v for e in errors for v in e.values()])
         out[name] = {
             "mean_px": float(np.nanmean(flat)),
-            "mean_px_elongation_3_or_more": float(np.nanmean(elongated)), "share_elongation_3_or_more": len(elongated) / flat.size, "median_px": float(np.nanmedian(flat)), "max_px": float(np.nanmax(flat)),
+            "mean_px_elongation_3_or_more": float(np.nanmean(elongated)),
+            "share_elongation_3_or_more": len(elongated) / flat.size, "median_px": float(np.nanmedian(flat)), "max_px": float(np.nanmax(flat)),
             "per_wrinkle_mean_px": {str(truth["curve_names"][c]): float(np.nanmean([e[i] for e in errors if i in e]))
                                     for i, c in sorted(matched.items())},
             "wrinkles": tracker.n_wrinkles, "frames": len(errors),

@@ -178,8 +178,8 @@ def test_tracked_valleys_lie_within_a_pixel_of_the_truth(footage_case: Path, nam
             curve = w.curve(64)
             if w.wrinkle not in matched:  # the same paint's truth curve nearest over its whole length
                 same = np.flatnonzero(truth["paint_index"] == w.color)
-                score = [polyline_distance(truth_px[c], curve)[0].mean() + polyline_distance(curve, truth_px[c])[0].mean()
-                         for c in same]
+                score = [polyline_distance(truth_px[c], curve)[0].mean()
+                         + polyline_distance(curve, truth_px[c])[0].mean() for c in same]
                 matched[w.wrinkle] = int(same[int(np.argmin(score))])
             errors.append(_curve_error(curve, truth_px[matched[w.wrinkle]]))
     assert len(set(matched.values())) == len(matched)  # one truth curve per tracked wrinkle

@@ -1,4 +1,4 @@
-"""fit_wrinkle_spline (eq. 5): exact on what a cubic spline spans, weighted as stated, the stripe centre from its pixels."""
+"""fit_wrinkle_spline (eq. 5): exact on a parabola, weighted as stated, a drawn stripe's centre from its pixels."""
 
 from __future__ import annotations
 

@@ -256,7 +256,8 @@ def train_paint_classifier(first_frame_image: Any, mask: Any, *, n_colors: int |
         The frame the mask was painted on, RGB.
     mask : (H, W) array, or sequence of (H, W) arrays
         One of: a label image (0 bare skin, ``1 + i`` where paint ``i`` covers the pixel: the
-        generator's ``mask_<cam>.png``, or :func:`mask_from_color_picks`'); a binary mask (bool, or 0 and 255) covering every paint,
+        generator's ``mask_<cam>.png``, or :func:`mask_from_color_picks`'); a binary mask (bool,
+        or 0 and 255) covering every paint,
         whose colours are then separated by :func:`separate_paint_colors`; or one binary mask
         per colour.
     n_colors : int, optional
