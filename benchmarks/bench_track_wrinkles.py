@@ -1,6 +1,6 @@
 """Wrinkle tracking (issue 10 item 3) on generated footage: distance of the tracked valleys to the truth, and speed.
 
-    python benchmarks/bench_track_wrinkles.py CASE_DIR [CASE_DIR ...] [--weighting darkness|uniform]
+    python benchmarks/bench_track_wrinkles.py CASE_DIR [CASE_DIR ...] [--weighting darkness|uniform] [--binary-masks]
 
 CASE_DIR is a ``facecap synth --footage`` folder. For each camera and video frame the tracked
 curves (caps trimmed) are compared with the truth valley curves (``truth.npz`` ``curve_points``,
@@ -40,7 +40,7 @@ def curve_error(tracked: np.ndarray, truth: np.ndarray) -> float:
     return float(both.mean()) if both.size else float("nan")
 
 
-def evaluate(case: Path, weighting: str) -> dict:
+def evaluate(case: Path, weighting: str, binary_masks: bool = False) -> dict:
     from facecap.cameras import open_footage, read_camera_file, read_image
     from facecap.wrinkles import WrinkleTracker, train_paint_classifier
 
@@ -56,6 +56,8 @@ def evaluate(case: Path, weighting: str) -> dict:
         camera = setup.camera(name)
         footage = open_footage(case / name)
         mask = read_image(case / f"mask_{name}.png")
+        if binary_masks:  # one mask for every paint: the classifier separates the colours itself
+            mask = mask > 0
         t0 = time.perf_counter()
         classifier = train_paint_classifier(footage.frame(0), mask)
         train_s = time.perf_counter() - t0
@@ -71,7 +73,8 @@ def evaluate(case: Path, weighting: str) -> dict:
             for w in wrinkles:
                 curve = w.curve(64)
                 if w.wrinkle not in matched:  # the truth curve of its paint nearest in frame 0
-                    candidates = np.flatnonzero(paint == w.color)
+                    # (separated colours are numbered by their own order: then any curve may match)
+                    candidates = np.arange(len(paint)) if binary_masks else np.flatnonzero(paint == w.color)
                     # whole curves both ways (ends included): a neighbour that overlaps only in part scores badly
                     scores = [np.mean(polyline_distance(camera.project(X[c]).pixels, curve)[0])
                               + np.mean(polyline_distance(curve, camera.project(X[c]).pixels)[0]) for c in candidates]
@@ -98,9 +101,10 @@ def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("cases", nargs="+", type=Path)
     parser.add_argument("--weighting", default="uniform", choices=["uniform", "darkness"])
+    parser.add_argument("--binary-masks", action="store_true", help="train from one binary mask per camera")
     args = parser.parse_args()
     for case in args.cases:
-        print(case, json.dumps(evaluate(case, args.weighting), indent=1))
+        print(case, json.dumps(evaluate(case, args.weighting, args.binary_masks), indent=1))
 
 
 if __name__ == "__main__":
