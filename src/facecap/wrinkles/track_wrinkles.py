@@ -195,7 +195,7 @@ class WrinkleTracker:
                     warnings.warn(f"frame {self._frame}{self._where()}: wrinkle {k} (paint {self.wrinkle_colors[k]}) "
                                   "was not found; it is left out until it reappears where it was last seen",
                                   WrinkleTrackingWarning, stacklevel=2)
-                reference[self._reference == k] = k  # look for it where it was last seen
+                reference[(self._reference == k) & (reference < 0)] = k  # look for it where it was last seen
                 continue
             self._lost.discard(k)
             r = r_sorted[starts[k]:starts[k + 1]]
