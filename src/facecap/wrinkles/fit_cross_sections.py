@@ -21,13 +21,13 @@ from .cross_section import wedge_intensity
 __all__ = ["CrossSections", "ProfileFit", "fit_profiles", "sample_cross_sections", "fit_cross_sections",
            "CrossSectionSamples"]
 
-DEFAULT_WIDTH_RANGE_MM = (0.3, 6.0)
+DEFAULT_WIDTH_RANGE_MM = (0.3, 4.5)  # the bulge tops (about 1.55 w) stay inside the default +-7 mm
 DEFAULT_HALF_EXTENT_MM = 7.0
 DEFAULT_SAMPLE_STEP_MM = 0.1
 DEFAULT_SECTION_SPACING_PX = 12.0
 DEFAULT_BAND_PX = 9
 DEFAULT_CHROMA_TOLERANCE = 0.06
-DEFAULT_DETECTION_THRESHOLD = 25.0
+DEFAULT_DETECTION_THRESHOLD = 100.0
 DEFAULT_ROUNDING = 2.0
 _GRID_WIDTHS = 12
 _TREND = [True]
@@ -84,6 +84,9 @@ class CrossSectionSamples(NamedTuple):
         Band-averaged intensity at ``p`` (projected on the paint's colour for colour images).
     valid : (n, k) bool array
         Inside the image, on the surface and on the same paint as the valley.
+    noise : (n,) float64 array
+        Standard deviation of the sensor's noise on ``intensity`` (the spread of the band's
+        lines over the square root of their number; NaN for a band of one line).
     """
 
     curve: IntArray
@@ -93,6 +96,7 @@ class CrossSectionSamples(NamedTuple):
     p: FloatArray
     intensity: FloatArray
     valid: BoolArray
+    noise: FloatArray
 
 
 class CrossSections(NamedTuple):
@@ -141,7 +145,7 @@ def _residuals(log_w: FloatArray, ratio: FloatArray, p: FloatArray, y: FloatArra
     return wy - level[:, None] * A - trend[:, None] * B, level
 
 
-def fit_profiles(p: object, intensity: object, *, valid: object = None,
+def fit_profiles(p: object, intensity: object, *, valid: object = None, noise: object = None,
                  width_range_mm: tuple[float, float] = DEFAULT_WIDTH_RANGE_MM, iterations: int = 12,
                  detection_threshold: float = DEFAULT_DETECTION_THRESHOLD,
                  rounding: float = DEFAULT_ROUNDING, fit_offset: bool = False) -> ProfileFit:
@@ -155,8 +159,14 @@ def fit_profiles(p: object, intensity: object, *, valid: object = None,
         Observed intensities (any linear unit: only ratios matter).
     valid : (n, k) bool array_like, optional
         Samples to use (default all finite ones).
-    width_range_mm : (float, float), default (0.3, 6.0)
+    noise : (n,) array_like, optional
+        Standard deviation of the noise on each sample (as
+        :attr:`CrossSectionSamples.noise`); default: from the fit's residual.
+    width_range_mm : (float, float), default (0.3, 4.5)
         Bounds of ``w``: the initial grid spans them and the iterations are clamped to them.
+        A fit that ends at the upper bound is reported as no wrinkle (``d = 0``): the
+        shading is broader than a valley whose bulges the profile holds (keep the upper
+        bound below the profile's half extent over 1.6).
     iterations : int, default 12
     detection_threshold : float, default 25
         A wrinkle is reported where the fit lowers the sum of squares of a flat
@@ -262,8 +272,15 @@ def fit_profiles(p: object, intensity: object, *, valid: object = None,
     flat[:, 1] = 0.0
     flat_res, flat_ambient = residuals(flat)
     flat_cost = (flat_res * flat_res).sum(1)
-    noise = cost / np.maximum(count - 3.0, 1.0)
-    has_wrinkle = usable & (ratio > 0) & (flat_cost - cost > detection_threshold * np.maximum(noise, 1e-300))
+    variance = cost / np.maximum(count - 3.0, 1.0)  # the residual's: noise and any mismatch of the model
+    if noise is not None:
+        measured = np.broadcast_to(np.asarray(noise, dtype=np.float64), (n,)) ** 2
+        variance = np.where(np.isfinite(measured) & (measured > 0), measured, variance)
+    noise = variance
+    # a fit pinned at the widest width is shading broader than any valley the profile holds
+    # (the large scale's own creases), not a wrinkle
+    within = np.exp(log_w) < 0.98 * w_hi
+    has_wrinkle = usable & within & (ratio > 0) & (flat_cost - cost > detection_threshold * np.maximum(noise, 1e-300))
     width = np.where(usable, np.exp(log_w), np.nan)
     depth = np.where(has_wrinkle, ratio * width, np.where(usable, 0.0, np.nan))
     ambient = np.where(has_wrinkle, ambient, flat_ambient)
@@ -401,7 +418,7 @@ def sample_cross_sections(image: object, splines_px: Sequence[object], camera: A
     n, k = C.shape[0], p.size
     if n == 0:
         empty = np.empty((0, k))
-        return CrossSectionSamples(curve_index, C, N, np.empty(0), p, empty, empty.astype(bool))
+        return CrossSectionSamples(curve_index, C, N, np.empty(0), p, empty, empty.astype(bool), np.empty(0))
 
     points, normals = _surface_hits(surface, camera, C)
     scale = np.full(n, np.nan)
@@ -418,7 +435,8 @@ def sample_cross_sections(image: object, splines_px: Sequence[object], camera: A
     map_v = where[..., 1].reshape(band_px, -1).astype(np.float32)
     sampled = cv2.remap(img, map_u, map_v, interpolation=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
                         borderValue=np.nan)
-    sampled = sampled.reshape((band_px, n, k) + img.shape[2:]).mean(axis=0)
+    lines = sampled.reshape((band_px, n, k) + img.shape[2:])
+    sampled = lines.mean(axis=0)
     height, width = img.shape[:2]
     inside = ((where[..., 0] >= 0) & (where[..., 0] <= width - 1) & (where[..., 1] >= 0)
               & (where[..., 1] <= height - 1)).all(axis=0)
@@ -438,10 +456,20 @@ def sample_cross_sections(image: object, splines_px: Sequence[object], camera: A
         valid &= contiguous
         direction = reference / np.linalg.norm(reference, axis=1, keepdims=True)
         intensity = (sampled * direction[:, None, :]).sum(-1)
+        line_intensity = (lines * direction[None, :, None, :]).sum(-1)
     else:
         intensity = sampled
+        line_intensity = lines
+    # the sensor's noise on a band average, from the spread of its lines (the valley barely changes
+    # over a band): independent of any model, it decides whether a fitted valley is real
+    if band_px > 1:
+        spread = np.where(valid, line_intensity.std(axis=0, ddof=1), np.nan)
+        with np.errstate(all="ignore"):
+            noise = np.nanmedian(spread, axis=1) / np.sqrt(band_px)
+    else:
+        noise = np.full(n, np.nan)
     intensity = np.where(valid, intensity, np.nan).astype(np.float64)
-    return CrossSectionSamples(curve_index, C, N, scale, p, intensity, valid)
+    return CrossSectionSamples(curve_index, C, N, scale, p, intensity, valid, noise)
 
 
 def fit_cross_sections(image: object, splines_px: Sequence[object], camera: Any, surface: Any, *,
@@ -474,7 +502,8 @@ def fit_cross_sections(image: object, splines_px: Sequence[object], camera: Any,
     samples = sample_cross_sections(image, splines_px, camera, surface, spacing_px=spacing_px,
                                     half_extent_mm=half_extent_mm, step_mm=step_mm, band_px=band_px,
                                     chroma_tolerance=chroma_tolerance)
-    fit = fit_profiles(samples.p, samples.intensity, valid=samples.valid, width_range_mm=width_range_mm,
+    fit = fit_profiles(samples.p, samples.intensity, valid=samples.valid, noise=samples.noise,
+                       width_range_mm=width_range_mm,
                        iterations=iterations, detection_threshold=detection_threshold, rounding=rounding,
                        fit_offset=fit_offset)
     return CrossSections(samples, fit)
