@@ -9,6 +9,12 @@
 - :func:`track_wrinkles`, :class:`WrinkleTracker`, :class:`TrackedWrinkle`,
   :class:`WrinkleTrackingWarning` (``track_wrinkles.py``): one camera's footage to
   valley splines per frame, each wrinkle keeping its identity (section 5.1).
+- :func:`cross_section` and :func:`wedge_intensity` (``cross_section.py``): the
+  valley model ``S(w, d, p)`` and its sky-lit intensity (eq. 6, 2.5D wedge, closed
+  form on tabulated horizons); :func:`profile_sky_visibility`, the brute-force
+  eq. 6 on any sampled profile.
+- :func:`fit_cross_sections` (``fit_cross_sections.py``): depth and width along a
+  valley spline from one image, the ratio fit of eq. 7 by batched Gauss-Newton.
 """
 
 from __future__ import annotations
@@ -24,6 +30,15 @@ from .wrinkle_masks import (
 )
 from .wrinkle_splines import WrinkleSpline, control_points_for_length, darkness_weights, fit_wrinkle_spline
 from .track_wrinkles import TrackedWrinkle, WrinkleTracker, WrinkleTrackingWarning, track_wrinkles
+from .cross_section import cross_section, profile_sky_visibility, wedge_intensity
+from .fit_cross_sections import (
+    CrossSections,
+    CrossSectionSamples,
+    ProfileFit,
+    fit_cross_sections,
+    fit_profiles,
+    sample_cross_sections,
+)
 
 __all__ = [
     "PaintClassifier",
@@ -41,4 +56,13 @@ __all__ = [
     "WrinkleTracker",
     "TrackedWrinkle",
     "WrinkleTrackingWarning",
+    "cross_section",
+    "wedge_intensity",
+    "profile_sky_visibility",
+    "fit_cross_sections",
+    "fit_profiles",
+    "sample_cross_sections",
+    "CrossSections",
+    "CrossSectionSamples",
+    "ProfileFit",
 ]
