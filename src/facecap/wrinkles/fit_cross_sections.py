@@ -29,9 +29,9 @@ DEFAULT_BAND_PX = 9
 DEFAULT_CHROMA_TOLERANCE = 0.06
 DEFAULT_DETECTION_THRESHOLD = 100.0
 DEFAULT_ROUNDING = 2.0
-_GRID_WIDTHS = 12
+_GRID_WIDTHS = 8
 _TREND = [True]
-_GRID_RATIOS = (0.0, 0.04, 0.08, 0.14, 0.22, 0.32, 0.45, 0.65, 0.9)
+_GRID_RATIOS = (0.0, 0.06, 0.14, 0.26, 0.42, 0.7)
 
 
 class ProfileFit(NamedTuple):
@@ -188,7 +188,7 @@ def fit_profiles(p: object, intensity: object, *, valid: object = None, noise: o
     on; the model's ``I`` is 1 exactly at the bulge tops ``|p| = 2 w``, so
     this is ``I_obs(m)`` without the noise. The unknowns are ``log w`` and
     ``d / w`` (the intensity depends on the shape only through ``|p|/w`` and
-    ``d/w``): an initial grid (12 widths x 9 ratios) then Gauss-Newton with
+    ``d/w``): an initial grid (8 widths x 6 ratios) then Gauss-Newton with
     step halving, ``d/w >= 0``.
     """
     Y = np.asarray(intensity, dtype=np.float64)
