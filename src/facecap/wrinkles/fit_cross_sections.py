@@ -3,9 +3,11 @@
 Every cross-section of a frame is fitted at once: the intensity profiles are
 sampled perpendicular to the splines with one ``cv2.remap``, and Gauss-Newton
 on ``(log w, d/w)`` runs batched (a 2x2 normal equation per cross-section,
-its Jacobian by finite differences of the closed-form eq. 6 of
-``cross_section.py``), so a frame costs milliseconds where the paper's
-Matlab spent eight minutes.
+3x3 with ``fit_offset``; the Jacobian by finite differences of the closed-form
+eq. 6 of ``cross_section.py``), so a camera frame of about 100 cross-sections
+costs 0.2 s where the paper's Matlab spent eight minutes. The model is the
+paper's ``S`` with its bottom rounded (``rounding``, default 2; 0 is the
+paper's exact ``S``): see ``docs/wrinkles.md`` for why and what it costs.
 """
 
 from __future__ import annotations
@@ -30,7 +32,6 @@ DEFAULT_CHROMA_TOLERANCE = 0.06
 DEFAULT_DETECTION_THRESHOLD = 100.0
 DEFAULT_ROUNDING = 2.0
 _GRID_WIDTHS = 8
-_TREND = [True]
 _GRID_RATIOS = (0.0, 0.06, 0.14, 0.26, 0.42, 0.7)
 
 
@@ -138,7 +139,7 @@ def _residuals(log_w: FloatArray, ratio: FloatArray, p: FloatArray, y: FloatArra
     aa, ab, bb = (A * A).sum(1), (A * B).sum(1), (B * B).sum(1)
     ay, by = (A * wy).sum(1), (B * wy).sum(1)
     det = aa * bb - ab * ab
-    ok = (det > 1e-12 * np.maximum(aa * bb, 1e-300)) & _TREND[0]
+    ok = det > 1e-12 * np.maximum(aa * bb, 1e-300)
     safe = np.where(ok, det, 1.0)
     level = np.where(ok, (bb * ay - ab * by) / safe, ay / np.maximum(aa, 1e-300))
     trend = np.where(ok, (aa * by - ab * ay) / safe, 0.0)
@@ -168,10 +169,19 @@ def fit_profiles(p: object, intensity: object, *, valid: object = None, noise: o
         shading is broader than a valley whose bulges the profile holds (keep the upper
         bound below the profile's half extent over 1.6).
     iterations : int, default 12
-    detection_threshold : float, default 25
+        Gauss-Newton iterations after the grid.
+    detection_threshold : float, default 100
         A wrinkle is reported where the fit lowers the sum of squares of a flat
-        surface by more than this many times the residual noise variance
-        (a likelihood-ratio test); elsewhere ``d = 0``.
+        surface by more than this many times the noise variance (``noise``, or
+        the residual's); elsewhere ``d = 0``. A likelihood-ratio test; 100 rather
+        than a chi-square quantile because finely sampled pixels are correlated.
+    rounding : float, default 2
+        The valley bottom's rounding (:func:`~facecap.wrinkles.cross_section`); 0: the
+        paper's ``S`` with its kink.
+    fit_offset : bool, default False
+        Also fit where the valley line lies across the profile (a third unknown, for
+        splines off the valley); off by default: on the generated footage it changed
+        nothing but the number of false wrinkles.
 
     Returns
     -------
@@ -183,10 +193,10 @@ def fit_profiles(p: object, intensity: object, *, valid: object = None, noise: o
     the intensity at an unshadowed bulge point ``m``. One pixel's intensity
     carries its sensor noise into every ratio (at the footage's 0.5 % noise a
     shallow wrinkle's 5 % dip would be misjudged by a tenth), so here
-    ``I_obs(m) = I_ambient`` is the least-squares level given the current
-    ``(w, d)`` (variable projection): the unshadowed level every sample agrees
-    on; the model's ``I`` is 1 exactly at the bulge tops ``|p| = 2 w``, so
-    this is ``I_obs(m)`` without the noise. The unknowns are ``log w`` and
+    the unshadowed level is the least-squares ``a + b p`` given the current
+    ``(w, d)`` (variable projection): the level every sample agrees on, ``a``
+    being ``I_obs(m)`` without the noise (the model's ``I`` is 1 exactly at the
+    bulge tops) and ``b`` the large scale's own uneven shading across the profile. The unknowns are ``log w`` and
     ``d / w`` (the intensity depends on the shape only through ``|p|/w`` and
     ``d/w``): an initial grid (8 widths x 6 ratios) then Gauss-Newton with
     step halving, ``d/w >= 0``.
@@ -492,6 +502,11 @@ def fit_cross_sections(image: object, splines_px: Sequence[object], camera: Any,
     camera : facecap.cameras.Camera
     surface : facecap.cameras.RayCaster or (V, F)
         The large-scale surface in the camera's frame, mm.
+
+    spacing_px, half_extent_mm, step_mm, band_px, chroma_tolerance
+        See :func:`sample_cross_sections`.
+    width_range_mm, iterations, detection_threshold, rounding, fit_offset
+        See :func:`fit_profiles`.
 
     Returns
     -------
