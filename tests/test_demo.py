@@ -16,6 +16,10 @@ def test_demo_writes_the_animation_report_and_pictures(tmp_path, capsys):
     V = np.load(out / "animation" / "vertices.npy", mmap_mode="r")
     assert V.shape == (120, 9409, 3)
     assert (out / "animation" / "performance.usdc").is_file()
+    # the review the summary points to: the glTF, its page with the truth's heat map, the report linking it
+    assert (out / "animation" / "performance.glb").is_file()
+    assert '"error":{"n":' in (out / "animation" / "review.html").read_text()  # the heat map is in the page
+    assert 'href="review.html"' in (out / "animation" / "report.html").read_text()
     assert summary["animface_take"]["max_flipped_triangles_in_any_frame"] == 0
     scans = summary["scan_workflow"]
     errors = scans["error_after_each_mm"]

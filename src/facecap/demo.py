@@ -79,11 +79,11 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", FacecapWarning)  # head-band markers not in the map: expected
             result = animate_scan(
-                scan, take, corr, stage / "animation", stabilize=True, exports=("usd", "gltf"), progress=progress,
+                scan, take, corr, stage / "animation", stabilize=True, exports=("usd",), progress=progress,
                 extra_metadata={"map": "inputs/map.json"},
             )
         shell_error = evaluate_result(files.truth, result.out_dir)
-        view_result(result.out_dir, truth=files.truth)  # review.html with the error heat map, report.html
+        view_result(result.out_dir, truth=files.truth)  # the glTF, review.html with the error heat map, report.html
 
         # --- the baseline: the same markers deforming the scan by the RBF warp alone
         vertices = np.load(result.out_dir / "vertices.npy", mmap_mode="r")

@@ -289,12 +289,7 @@ class Camera:
         """
         import cv2
 
-        try:
-            P = np.asarray(pixels, dtype=np.float64)
-        except (TypeError, ValueError) as exc:
-            raise InputError(f"camera {self.name!r}: pixels: expected a numeric (..., 2) array ({exc})") from None
-        if P.ndim < 1 or P.shape[-1] != 2:
-            raise InputError(f"camera {self.name!r}: pixels: expected shape (..., 2), got {P.shape}")
+        P = _as_points(pixels, self.name, width=2, name="pixels")
         if not np.all(np.isfinite(P)):
             raise InputError(f"camera {self.name!r}: pixels: contains NaN or infinite values")
         flat = P.reshape(-1, 1, 2)
@@ -320,13 +315,14 @@ class Camera:
         return np.stack([uu, vv], axis=-1)
 
 
-def _as_points(points: Any, camera: str) -> FloatArray:
+def _as_points(points: Any, camera: str, *, width: int = 3, name: str = "points") -> FloatArray:
+    """``points`` as a float64 ``(..., width)`` array, or an InputError naming the camera and the argument."""
     try:
         X = np.asarray(points, dtype=np.float64)
     except (TypeError, ValueError) as exc:
-        raise InputError(f"camera {camera!r}: points: expected a numeric (..., 3) array ({exc})") from None
-    if X.ndim < 1 or X.shape[-1] != 3:
-        raise InputError(f"camera {camera!r}: points: expected shape (..., 3), got {X.shape}")
+        raise InputError(f"camera {camera!r}: {name}: expected a numeric (..., {width}) array ({exc})") from None
+    if X.ndim < 1 or X.shape[-1] != width:
+        raise InputError(f"camera {camera!r}: {name}: expected shape (..., {width}), got {X.shape}")
     return X
 
 

@@ -49,7 +49,7 @@ from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_reg
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
 from .write_mesh import write_mesh
-from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, PerformanceWriter, read_performance_info
+from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, PerformanceWriter, file_sizes, read_performance_info
 from .write_usd import UsdPerformanceWriter
 from .write_point_cache import write_mdd, write_pc2
 from .write_alembic import write_alembic
@@ -84,6 +84,7 @@ __all__ = [
     "write_pc2",
     "write_alembic",
     "STREAMED_FORMATS",
+    "file_sizes",
     "ResultRig",
     "write_rig",
     "read_rig",

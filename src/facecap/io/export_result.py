@@ -36,7 +36,7 @@ import numpy as np
 
 from ..errors import FacecapWarning, InputError
 from .read_result import Result, read_result
-from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS
+from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, file_sizes
 
 __all__ = ["export_result", "parse_export_formats", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES"]
 
@@ -128,13 +128,14 @@ def export_result(
     target = Path(out_dir) if out_dir is not None else result.path
     target.mkdir(parents=True, exist_ok=True)
     report: dict[str, Any] = {}
+    rest_obj = _rest_obj(result, target) if {"mdd", "pc2"} & set(wanted) else None  # one for both caches
     for fmt in wanted:
         if skip_streamed and fmt in STREAMED_FORMATS and not (fmt == "usd" and result.rig is not None):
             continue
         writer = _WRITERS[fmt]
         report[fmt] = writer(result, target, batch_frames=batch_frames, progress=progress,
                              gltf_targets=gltf_targets, review_vertices=review_vertices, gltf_compress=gltf_compress,
-                             usd_shapes=usd_shapes)
+                             usd_shapes=usd_shapes, rest_obj=rest_obj)
     if target == result.path:
         _record(result.path, report)
     return report
@@ -148,8 +149,7 @@ def _record(folder: Path, report: dict[str, Any]) -> None:
     info = json.loads(path.read_text())
     info.setdefault("exports_report", {}).update(report)
     info["exports"] = list(dict.fromkeys(list(info.get("exports", [])) + list(report)))
-    info["files"] = {str(p.relative_to(folder)): p.stat().st_size
-                     for p in sorted(folder.rglob("*")) if p.is_file() and p.name != "performance.json"}
+    info["files"] = file_sizes(folder)
     atomic_write_text(path, json.dumps(info, indent=2))
 
 
@@ -163,16 +163,15 @@ def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bo
         from .write_usd_blendshapes import DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES, write_usd_blendshapes
 
         rig = result.rig
-        exact_count = 3 * rig.n_basis if rig.kind == "vertex-weights" else rig.n_basis
         if usd_shapes == "exact":
             max_shapes = None
         elif usd_shapes == "auto":
-            too_big = 12 * exact_count * rig.n_vertices > USD_EXACT_MAX_BYTES
+            too_big = 12 * rig.n_shapes * rig.n_vertices > USD_EXACT_MAX_BYTES
             max_shapes = DEFAULT_USD_COMPONENTS if too_big else None
             if too_big:
                 warnings.warn(
-                    f"USD: the exact rig needs {exact_count} blend shapes of {rig.n_vertices} vertices "
-                    f"({12 * exact_count * rig.n_vertices / 1e9:.1f} GB); writing its first {max_shapes} principal "
+                    f"USD: the exact rig needs {rig.n_shapes} blend shapes of {rig.n_vertices} vertices "
+                    f"({12 * rig.n_shapes * rig.n_vertices / 1e9:.1f} GB); writing its first {max_shapes} principal "
                     "components instead (error in performance.json; the exact form is rig/, or --usd-shapes exact)",
                     FacecapWarning, stacklevel=3)
         else:
@@ -220,20 +219,22 @@ def _rest_obj(result: Result, target: Path) -> Path:
     return path
 
 
-def _export_mdd(result: Result, target: Path, *, batch_frames: int, progress: bool, **_: Any) -> dict[str, Any]:
+def _export_mdd(result: Result, target: Path, *, batch_frames: int, progress: bool, rest_obj: Path,
+                **_: Any) -> dict[str, Any]:
     from .write_point_cache import write_mdd
 
     path = write_mdd(target / "performance.mdd", _progress(result, batch_frames, progress, "MDD"),
                      n_frames=result.n_frames, n_vertices=result.n_vertices, rate=result.rate)
-    return {"files": _sizes(Path(path), _rest_obj(result, target))}
+    return {"files": _sizes(Path(path), rest_obj)}
 
 
-def _export_pc2(result: Result, target: Path, *, batch_frames: int, progress: bool, **_: Any) -> dict[str, Any]:
+def _export_pc2(result: Result, target: Path, *, batch_frames: int, progress: bool, rest_obj: Path,
+                **_: Any) -> dict[str, Any]:
     from .write_point_cache import write_pc2
 
     path = write_pc2(target / "performance.pc2", _progress(result, batch_frames, progress, "PC2"),
                      n_frames=result.n_frames, n_vertices=result.n_vertices, rate=result.rate)
-    return {"files": _sizes(Path(path), _rest_obj(result, target))}
+    return {"files": _sizes(Path(path), rest_obj)}
 
 
 def _export_abc(result: Result, target: Path, *, batch_frames: int, progress: bool, **_: Any) -> dict[str, Any]:

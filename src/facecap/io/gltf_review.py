@@ -75,9 +75,7 @@ def write_gltf_review(
     to_mm = np.float32(result.mm_per_unit)
     rig = result.rig
     if rig is not None:
-        scale = np.float32(1.0) if rig.kind == "vertex-weights" else to_mm  # the unit is in the coefficients or the shapes
-        coefficients = rig.coefficients * (to_mm if rig.kind == "vertex-weights" else np.float32(1.0))
-        basis = rig.dense_basis(subset) * scale
+        basis, coefficients = rig.in_mm(subset)
         found = principal_targets_from_rig(basis, coefficients, max_targets=max_targets, progress=progress)
         base = review.mesh.with_vertices(rig.rest[subset].astype(np.float64) * float(to_mm))
     else:

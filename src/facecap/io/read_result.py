@@ -21,7 +21,7 @@ from ..errors import FileFormatError, InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
 from .result_rig import ResultRig, _frame_range, read_rig
-from .write_performance import read_performance_info
+from .write_performance import file_sizes, read_performance_info
 
 __all__ = ["read_result", "Result", "MESH_FILE"]
 
@@ -96,9 +96,8 @@ class Result:
             yield lo, self.frames(lo, min(lo + batch_frames, stop))
 
     def files(self) -> dict[str, int]:
-        """Every file in the folder (relative path) with its size in bytes."""
-        return {str(p.relative_to(self.path)): p.stat().st_size
-                for p in sorted(self.path.rglob("*")) if p.is_file()}
+        """Every file in the folder (relative path) with its size in bytes, ``performance.json`` less."""
+        return file_sizes(self.path)
 
 
 def read_result(path: str | os.PathLike[str]) -> Result:

@@ -44,7 +44,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..units import normalize_unit
+from ..units import mm_per_unit, normalize_unit
 
 __all__ = ["ResultRig", "write_rig", "read_rig", "RIG_FORMAT", "RIG_PRECISIONS"]
 
@@ -155,6 +155,11 @@ class ResultRig:
         return int(self.basis.shape[0])
 
     @property
+    def n_shapes(self) -> int:
+        """Blend shapes the exact rig takes (:meth:`shapes`): ``3 K`` for per-vertex weights, ``K`` for shapes."""
+        return 3 * self.n_basis if self.basis.ndim == 2 else self.n_basis
+
+    @property
     def kind(self) -> str:
         """``'vertex-weights'`` (a ``(K, n)`` basis) or ``'shapes'`` (a ``(K, n, 3)`` basis)."""
         return "vertex-weights" if self.basis.ndim == 2 else "shapes"
@@ -186,6 +191,18 @@ class ResultRig:
             return np.asarray(B, dtype=np.float32)
         scale = self.basis_scale[vertices]
         return B.astype(np.float32) * (scale[None, :, None] if B.ndim == 3 else scale[None, :])
+
+    def in_mm(self, vertices: slice | np.ndarray = slice(None)) -> tuple[np.ndarray, np.ndarray]:
+        """``(basis, coefficients)`` float32 with the rig's length unit converted to mm, for some or all vertices.
+
+        The unit sits in the coefficients of per-vertex weights (marker
+        displacements) and in the basis of shapes; the other factor is unitless.
+        """
+        to_mm = np.float32(mm_per_unit(self.units))
+        basis = self.dense_basis(vertices)
+        if self.basis.ndim == 2:
+            return basis, self.coefficients * to_mm
+        return basis * to_mm, self.coefficients
 
     def frames(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Frames ``start`` to ``stop`` as a float32 ``(stop - start, n, 3)`` array, in :attr:`units`."""
@@ -228,7 +245,7 @@ class ResultRig:
         S = np.zeros((K, 3, n, 3), np.float32)
         for axis in range(3):
             S[:, axis, :, axis] = B
-        return S.reshape(3 * K, n, 3), [f"{name}_{axis}" for name in names for axis in "xyz"]
+        return S.reshape(self.n_shapes, n, 3), [f"{name}_{axis}" for name in names for axis in "xyz"]
 
     def shape_weights(self) -> np.ndarray:
         """Per-frame weights of :meth:`shapes`, ``(T, m)`` float32."""

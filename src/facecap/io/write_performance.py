@@ -42,7 +42,7 @@ from ..structures import Mesh
 from ..units import mm_per_unit
 from ._atomic import atomic_folder
 
-__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "read_performance_info"]
+__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "read_performance_info", "file_sizes"]
 
 EXPORT_FORMATS = ("usd", "gltf", "mdd", "pc2", "abc", "obj", "ply")
 """Exports ``--export`` accepts besides ``vertices.npy`` and the rig."""
@@ -129,14 +129,9 @@ class PerformanceWriter:
         self.mesh = mesh
         self.rate = float(rate)
         self.n_frames = int(n_frames)
-        self.exports = tuple(dict.fromkeys(exports))
-        unknown = [e for e in self.exports if e not in EXPORT_FORMATS]
-        if unknown:
-            raise InputError(f"--export: unknown format(s) {unknown}; choose from {list(EXPORT_FORMATS)}")
-        if "abc" in self.exports:  # before the frames, not after them: a missing optional package loses no work
-            from .write_alembic import _import_alembic
+        from .export_result import parse_export_formats  # names and optional packages: one home
 
-            _import_alembic()
+        self.exports = tuple(parse_export_formats(exports))
         self._folder = atomic_folder(self.out_dir, marker_file=_MARKER_FILE)
         self.staging = self._folder.__enter__()
         self._unit_scale = np.float32(1.0 / mm_per_unit(mesh.source_unit))
@@ -339,8 +334,7 @@ class PerformanceWriter:
                           skip_streamed=True, **self.export_options)
             info = json.loads(info_path.read_text())
         self._write_pages()
-        info["files"] = {str(p.relative_to(self.staging)): p.stat().st_size
-                         for p in sorted(self.staging.rglob("*")) if p.is_file() and p.name != _MARKER_FILE}
+        info["files"] = file_sizes(self.staging)
         info_path.write_text(json.dumps(info, indent=2, default=_json_default))
         self._folder.__exit__(None, None, None)
         self._finished = True
@@ -371,6 +365,16 @@ class PerformanceWriter:
                 pass
         if not self._finished:
             self._folder.__exit__(InputError, InputError("aborted"), None)
+
+
+def file_sizes(folder: str | os.PathLike[str]) -> dict[str, int]:
+    """Every file under a result folder (relative path) with its size in bytes, less ``performance.json``.
+
+    What ``performance.json`` lists as ``files``.
+    """
+    root = Path(folder)
+    return {str(p.relative_to(root)): p.stat().st_size
+            for p in sorted(root.rglob("*")) if p.is_file() and p.name != _MARKER_FILE}
 
 
 def read_performance_info(out_dir: str | os.PathLike[str]) -> dict[str, Any]:

@@ -138,19 +138,15 @@ def write_usd_blendshapes(
     tolerance = float(tolerance_mm) / mm_per_unit(rig.units)
 
     principal = None
-    exact_count = 3 * rig.n_basis if rig.kind == "vertex-weights" else rig.n_basis
-    if max_shapes is not None and exact_count > int(max_shapes):
+    if max_shapes is not None and rig.n_shapes > int(max_shapes):
         from ..deform.principal_targets import principal_targets_from_rig
 
         to_mm = np.float32(mm_per_unit(rig.units))
-        vector = rig.kind == "shapes"
-        principal = principal_targets_from_rig(rig.dense_basis() * (to_mm if vector else 1),
-                                               rig.coefficients * (1 if vector else to_mm),
-                                               max_targets=int(max_shapes),
-                                               exact_max=(rig.n_frames * rig.n_vertices * exact_count
-                                                          <= MAX_ERROR_PASS_FLOPS) if exact_max_error is None
-                                               else exact_max_error,
-                                               progress=progress)
+        if exact_max_error is None:
+            exact_max_error = rig.n_frames * rig.n_vertices * rig.n_shapes <= MAX_ERROR_PASS_FLOPS
+        basis, coefficients = rig.in_mm()
+        principal = principal_targets_from_rig(basis, coefficients, max_targets=int(max_shapes),
+                                               exact_max=exact_max_error, progress=progress)
         shapes = principal.targets / to_mm
         weights = principal.weights
         names = [f"pc{j:03d}" for j in range(shapes.shape[0])]
