@@ -1,0 +1,296 @@
+"""Quasistatic equilibrium ``f(X(a, b), a) = 0`` (Sifakis et al. 2005, eq. 2) by projected Newton.
+
+Each Newton step assembles the stiffness with every tetrahedron's stress derivative
+projected onto the positive semi-definite cone (so the step is a descent direction even
+for inverted or strongly compressed tetrahedra), factors it once with a sparse Cholesky-
+type solver, and backtracks along the step until the energy decreases enough (Armijo).
+The factor of the last stiffness stays available for the Jacobians of eq. 5 and 6.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any, Literal, NamedTuple
+
+import numpy as np
+
+from ..deform.factor_spd import SpdFactor
+from ..errors import InputError
+from ..typing import FloatArray
+from .flesh_model import FleshModel
+
+__all__ = ["QuasistaticSolver", "QuasistaticResult", "solve_quasistatic"]
+
+
+class QuasistaticResult(NamedTuple):
+    """The outcome of one quasistatic solve.
+
+    Attributes
+    ----------
+    positions : (n, 3) float64 array, mm
+        Equilibrium node positions (Dirichlet nodes at their prescribed positions).
+    converged : bool
+        Whether the largest free nodal residual fell below the tolerance.
+    iterations : int
+        Newton steps taken.
+    residual : float, mN
+        Largest free nodal residual force norm at ``positions``.
+    energy : float, uJ
+        Elastic energy at ``positions``.
+    inverted_tets : int
+        Tetrahedra with ``det F <= 0`` at ``positions``.
+    inverted_tets_initial : int
+        The same at the initial guess.
+    timings : dict of str to float, s
+        ``assembly`` (energy, forces, stiffness and projection), ``factorisation``,
+        ``solves`` and ``line_search``, summed over the steps.
+    """
+
+    positions: FloatArray
+    converged: bool
+    iterations: int
+    residual: float
+    energy: float
+    inverted_tets: int
+    inverted_tets_initial: int
+    timings: dict[str, float]
+
+
+class QuasistaticSolver:
+    """Solve the flesh's quasistatic equilibrium, then reuse the factorisation.
+
+    Parameters
+    ----------
+    model : FleshModel
+    backend : {'auto', 'pardiso', 'scipy'}, default 'auto'
+        Sparse factorisation (:class:`facecap.deform.SpdFactor`): MKL PARDISO where it
+        loads, else SciPy's SuperLU.
+    tolerance : float, default 1e-6
+        Converged when every free node's residual force is below
+        ``tolerance * mu * h^2`` (``mu`` the small-strain shear modulus, ``h`` the mean
+        rest edge length): the force a strain of ``tolerance`` puts on one element face.
+    max_iterations : int, default 30
+    max_halvings : int, default 30
+        Line-search halvings of the step before giving up.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> X = np.array([[0., 0, 0], [10, 0, 0], [0, 10, 0], [0, 0, 10], [4, 4, 4]])
+    >>> T = np.array([[0, 1, 2, 4], [0, 1, 4, 3], [0, 4, 2, 3], [1, 2, 3, 4]])
+    >>> model = FleshModel(X, T, None, None, np.array([0, 1, 2, 3]))
+    >>> result = QuasistaticSolver(model).solve(np.zeros(0), X[:4], x0=X + [0, 0, 3])
+    >>> result.converged, bool(np.abs(result.positions - X).max() < 1e-6)
+    (True, True)
+    """
+
+    def __init__(self, model: FleshModel, *, backend: Literal["auto", "pardiso", "scipy"] = "auto",
+                 tolerance: float = 1e-6, max_iterations: int = 30, max_halvings: int = 30) -> None:
+        if not isinstance(model, FleshModel):
+            raise InputError(f"model: expected a FleshModel, got {type(model).__name__}")
+        if not (np.isfinite(tolerance) and tolerance > 0):
+            raise InputError(f"tolerance: expected a positive value, got {tolerance!r}")
+        self.model = model
+        self.backend = backend
+        self.tolerance = float(tolerance)
+        self.max_iterations = int(max_iterations)
+        self.max_halvings = int(max_halvings)
+        self.force_tolerance_mn = self.tolerance * model.material.shear_modulus_kpa * model.mean_edge_mm**2
+        self._factor: SpdFactor | None = None
+        self._stiffness: Any = None
+        self._element_stiffness: FloatArray | None = None
+        self._positions: FloatArray | None = None
+        self._activations: FloatArray | None = None
+
+    def _initial_positions(self, dirichlet_positions: Any, x0: Any) -> FloatArray:
+        model = self.model
+        xc = np.asarray(dirichlet_positions, dtype=np.float64)
+        if xc.shape != (model.dirichlet_nodes.size, 3) or not np.all(np.isfinite(xc)):
+            raise InputError(f"dirichlet_positions: expected finite shape ({model.dirichlet_nodes.size}, 3), "
+                             f"got {xc.shape}")
+        if x0 is None:
+            x = model.rest_positions.copy()
+        else:
+            x = np.array(x0, dtype=np.float64)
+            if x.shape != model.rest_positions.shape or not np.all(np.isfinite(x)):
+                raise InputError(f"x0: expected finite shape {model.rest_positions.shape}, got {x.shape}")
+        x[model.dirichlet_nodes] = xc
+        return x
+
+    def solve(self, activations: FloatArray, dirichlet_positions: FloatArray,
+              x0: FloatArray | None = None) -> QuasistaticResult:
+        """Equilibrium positions under ``activations`` with the Dirichlet nodes at ``dirichlet_positions``.
+
+        Parameters
+        ----------
+        activations : (k,) float64 array
+            Muscle activations (physically in [0, 1]).
+        dirichlet_positions : (d,) x 3 float64 array, mm
+            Positions of ``model.dirichlet_nodes``, in that order.
+        x0 : (n, 3) float64 array, mm, optional
+            Initial guess (the previous frame's solution, interpolated states in a line
+            search); default the rest positions. Its Dirichlet rows are replaced.
+
+        Returns
+        -------
+        QuasistaticResult
+            Not converged is reported there, not raised; the positions are the last iterate.
+
+        Raises
+        ------
+        SolverError
+            If the factorisation fails (no Dirichlet support for some part of the mesh).
+        """
+        model = self.model
+        a = model._activations(activations)
+        x = self._initial_positions(dirichlet_positions, x0)
+        free = model.free_dofs
+        timings = {"assembly": 0.0, "factorisation": 0.0, "solves": 0.0, "line_search": 0.0}
+        self._drop_factor()
+        t = time.perf_counter()
+        state = model.evaluate(x, a)
+        timings["assembly"] += time.perf_counter() - t
+        inverted_initial = state.inverted
+        iterations = 0
+        converged = False
+        while True:
+            residual = state.forces[model.free_nodes]
+            residual_max = float(np.sqrt((residual**2).sum(axis=1)).max(initial=0.0))
+            if residual_max <= self.force_tolerance_mn:
+                converged = True
+                break
+            if iterations >= self.max_iterations:
+                break
+            assert state.element_stiffness is not None
+            t = time.perf_counter()
+            K = model.assemble(state.element_stiffness, free_only=True)
+            timings["assembly"] += time.perf_counter() - t
+            t = time.perf_counter()
+            factor = SpdFactor(K, backend=self.backend)
+            timings["factorisation"] += time.perf_counter() - t
+            t = time.perf_counter()
+            r = residual.reshape(-1)
+            step = factor.solve(r)  # K step = f: a descent direction of E (f = -grad E)
+            factor.free()
+            timings["solves"] += time.perf_counter() - t
+            t = time.perf_counter()
+            x, accepted = self._line_search(x, a, state.energy, r, step, free)
+            timings["line_search"] += time.perf_counter() - t
+            iterations += 1
+            t = time.perf_counter()
+            state = model.evaluate(x, a)
+            timings["assembly"] += time.perf_counter() - t
+            if not accepted:
+                break
+        self._positions, self._activations = x, a
+        self._element_stiffness = state.element_stiffness
+        return QuasistaticResult(x, converged, iterations, residual_max, state.energy, state.inverted,
+                                 inverted_initial, timings)
+
+    def _line_search(self, x: FloatArray, a: FloatArray, energy: float, r: FloatArray, step: FloatArray,
+                     free: Any) -> tuple[FloatArray, bool]:
+        """Backtracking (Armijo) on the energy along ``step``; returns the new positions and success."""
+        slope = -float(np.dot(r, step))  # dE/dalpha at 0, negative for a descent step
+        # The energy is a sum of element terms: below this difference the comparison is round-off.
+        noise = 1e-12 * (abs(energy) + 1.0) + 1e-9 * self.force_tolerance_mn * float(np.abs(step).max(initial=0.0))
+        alpha = 1.0
+        flat = x.reshape(-1)
+        for _ in range(self.max_halvings + 1):
+            trial = flat.copy()
+            trial[free] += alpha * step
+            trial_x = trial.reshape(x.shape)
+            trial_energy = self.model.evaluate(trial_x, a, derivatives=0).energy
+            if np.isfinite(trial_energy) and trial_energy <= energy + 1e-4 * alpha * slope + noise:
+                return trial_x, True
+            alpha *= 0.5
+        return x, False
+
+    # -- reuse of the factorisation (eq. 5 and 6) ----------------------------------------------
+    def _drop_factor(self) -> None:
+        if self._factor is not None:
+            self._factor.free()
+        self._factor = None
+        self._stiffness = None
+
+    def factor(self) -> SpdFactor:
+        """The factorised free-node stiffness at the last solution (factored on first use)."""
+        if self._element_stiffness is None:
+            raise InputError("no solution yet: call solve() first")
+        if self._factor is None:
+            self._stiffness = self.model.assemble(self._element_stiffness, free_only=True)
+            self._factor = SpdFactor(self._stiffness, backend=self.backend)
+        return self._factor
+
+    def solve_linear(self, rhs: FloatArray) -> FloatArray:
+        """Solve ``K_UU u = rhs_U`` with the stiffness at the last solution, reusing its factor.
+
+        Parameters
+        ----------
+        rhs : (n, 3) or (c, n, 3) float64 array, mN
+            Nodal right-hand side(s); the Dirichlet rows are ignored.
+
+        Returns
+        -------
+        float64 array like ``rhs``, mm
+            ``u`` on the free nodes, zero on the Dirichlet nodes.
+        """
+        model = self.model
+        b = np.asarray(rhs, dtype=np.float64)
+        single = b.ndim == 2
+        B = b[None] if single else b
+        if B.ndim != 3 or B.shape[1:] != (model.n_nodes, 3):
+            raise InputError(f"rhs: expected shape ({model.n_nodes}, 3) or (c, {model.n_nodes}, 3), got {b.shape}")
+        cols = B.reshape(B.shape[0], -1)[:, model.free_dofs].T
+        u_free = self.factor().solve(np.ascontiguousarray(cols))
+        out = np.zeros_like(B)
+        out.reshape(B.shape[0], -1)[:, model.free_dofs] = np.asarray(u_free).reshape(cols.shape).T
+        return out[0] if single else out
+
+    def activation_jacobian(self) -> FloatArray:
+        """``dX/da_k`` at the last solution (eq. 5): ``K_UU dX_U/da_k = f_k(X)``, (k, n, 3) mm."""
+        if self._positions is None:
+            raise InputError("no solution yet: call solve() first")
+        return self.solve_linear(self.model.force_basis(self._positions))
+
+    def boundary_jacobian(self, dirichlet_velocity: FloatArray) -> FloatArray:
+        """``dX/db`` for one motion of the Dirichlet nodes (eq. 6): ``K_UU dX_U = -K_UC dX_C``.
+
+        Parameters
+        ----------
+        dirichlet_velocity : (d, 3) float64 array, mm per unit of the control
+            ``dX_C/db_i`` for ``model.dirichlet_nodes``.
+
+        Returns
+        -------
+        (n, 3) float64 array, mm per unit of the control
+            Free rows from the solve, Dirichlet rows equal to ``dirichlet_velocity``.
+        """
+        model = self.model
+        if self._element_stiffness is None:
+            raise InputError("no solution yet: call solve() first")
+        v = np.asarray(dirichlet_velocity, dtype=np.float64)
+        if v.shape != (model.dirichlet_nodes.size, 3):
+            raise InputError(f"dirichlet_velocity: expected shape ({model.dirichlet_nodes.size}, 3), got {v.shape}")
+        u = np.zeros((model.n_nodes, 3))
+        u[model.dirichlet_nodes] = v
+        out = self.solve_linear(-model.element_action(self._element_stiffness, u))
+        out[model.dirichlet_nodes] = v
+        return out
+
+
+def solve_quasistatic(model: FleshModel, activations: FloatArray, dirichlet_positions: FloatArray,
+                      x0: FloatArray | None = None, **options: Any) -> QuasistaticResult:
+    """One-shot :meth:`QuasistaticSolver.solve` (``options`` go to :class:`QuasistaticSolver`).
+
+    Parameters
+    ----------
+    model : FleshModel
+    activations : (k,) float64 array
+    dirichlet_positions : (d, 3) float64 array, mm
+    x0 : (n, 3) float64 array, mm, optional
+
+    Returns
+    -------
+    QuasistaticResult
+    """
+    return QuasistaticSolver(model, **options).solve(activations, dirichlet_positions, x0)
