@@ -10,12 +10,13 @@ The factor of the last stiffness stays available for the Jacobians of eq. 5 and 
 from __future__ import annotations
 
 import time
+import warnings
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
 
 from ..deform.factor_spd import SpdFactor
-from ..errors import InputError
+from ..errors import FacecapWarning, InputError, SolverError
 from ..typing import FloatArray
 from .flesh_model import FleshModel
 
@@ -72,6 +73,13 @@ class QuasistaticSolver:
     max_iterations : int, default 30
     max_halvings : int, default 30
         Line-search halvings of the step before giving up.
+    exact_jacobians : bool, default True
+        The Jacobians (:meth:`solve_linear` and what uses it) factor the exact stiffness at
+        the solution, which is positive definite at a stable equilibrium (Sifakis et al.
+        2005, section 6), so they are the true derivatives of the equilibrium. Where it is
+        not (PARDISO reports it), they fall back to the projected stiffness of the Newton
+        steps with a :class:`FacecapWarning`. False: always the projected one (no extra
+        assembly; approximate derivatives wherever a tetrahedron was projected).
 
     Examples
     --------
@@ -85,7 +93,8 @@ class QuasistaticSolver:
     """
 
     def __init__(self, model: FleshModel, *, backend: Literal["auto", "pardiso", "scipy"] = "auto",
-                 tolerance: float = 1e-6, max_iterations: int = 30, max_halvings: int = 30) -> None:
+                 tolerance: float = 1e-6, max_iterations: int = 30, max_halvings: int = 30,
+                 exact_jacobians: bool = True) -> None:
         if not isinstance(model, FleshModel):
             raise InputError(f"model: expected a FleshModel, got {type(model).__name__}")
         if not (np.isfinite(tolerance) and tolerance > 0):
@@ -95,6 +104,8 @@ class QuasistaticSolver:
         self.tolerance = float(tolerance)
         self.max_iterations = int(max_iterations)
         self.max_halvings = int(max_halvings)
+        self.exact_jacobians = bool(exact_jacobians)
+        self.jacobian_stiffness: str | None = None  # 'exact' or 'projected' once factored
         self.force_tolerance_mn = self.tolerance * model.material.shear_modulus_kpa * model.mean_edge_mm**2
         self._factor: SpdFactor | None = None
         self._stiffness: Any = None
@@ -211,14 +222,33 @@ class QuasistaticSolver:
             self._factor.free()
         self._factor = None
         self._stiffness = None
+        self.jacobian_stiffness = None
 
     def factor(self) -> SpdFactor:
-        """The factorised free-node stiffness at the last solution (factored on first use)."""
-        if self._element_stiffness is None:
+        """The factorised free-node stiffness at the last solution (factored on first use).
+
+        The exact stiffness where it is positive definite (see ``exact_jacobians``), else
+        the projected one; ``jacobian_stiffness`` says which.
+        """
+        if self._element_stiffness is None or self._positions is None or self._activations is None:
             raise InputError("no solution yet: call solve() first")
         if self._factor is None:
+            if self.exact_jacobians:
+                exact = self.model.evaluate(self._positions, self._activations, definiteness_fix=False)
+                assert exact.element_stiffness is not None
+                stiffness = self.model.assemble(exact.element_stiffness, free_only=True)
+                try:
+                    self._factor = SpdFactor(stiffness, backend=self.backend)
+                    self._element_stiffness, self._stiffness = exact.element_stiffness, stiffness
+                    self.jacobian_stiffness = "exact"
+                    return self._factor
+                except SolverError:
+                    warnings.warn("the stiffness at the solution is not positive definite (an unstable "
+                                  "equilibrium, or inverted tetrahedra); the Jacobians use the projected "
+                                  "stiffness of the Newton steps and are approximate", FacecapWarning, stacklevel=2)
             self._stiffness = self.model.assemble(self._element_stiffness, free_only=True)
             self._factor = SpdFactor(self._stiffness, backend=self.backend)
+            self.jacobian_stiffness = "projected"
         return self._factor
 
     def solve_linear(self, rhs: FloatArray) -> FloatArray:
