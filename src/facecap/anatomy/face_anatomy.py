@@ -1,0 +1,228 @@
+"""The anatomical face model: one record, saved as ``anatomy.npz`` plus ``anatomy.json``.
+
+:func:`~facecap.anatomy.build_anatomy` makes it from a scan; the finite
+element model (``facecap.fem``) reads it. Everything is in millimetres.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import FileFormatError, InputError
+from ..io._atomic import atomic_path, atomic_write_text
+from ..typing import FloatArray, IntArray
+from .skin_embedding import SkinEmbedding, embedding_matrix
+
+__all__ = ["FaceAnatomy", "load_anatomy", "ANATOMY_FORMAT"]
+
+ANATOMY_FORMAT = "facecap-anatomy/1"
+"""Format tag written in ``anatomy.json``; :func:`load_anatomy` refuses others."""
+
+_ARRAYS = (
+    "nodes", "tets", "muscle_fractions", "muscle_fibres", "muscle_curves", "muscle_rings",
+    "muscle_widths_mm", "muscle_thicknesses_mm", "cranium_nodes", "mandible_nodes", "rim_nodes",
+    "skin_tets", "skin_weights", "skin_inside", "skin_meshed", "condyles", "landmark_vertices",
+    "landmark_points", "scan_vertices", "scan_faces", "bone_vertices", "bone_faces", "tissue_thickness_mm",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class FaceAnatomy:
+    """The soft-tissue mesh of a face with its muscles, bones and skin.
+
+    Attributes
+    ----------
+    nodes : (N, 3) float64 array, mm
+        Tetrahedral mesh nodes (rest pose).
+    tets : (M, 4) int64 array
+        Tetrahedra, positively oriented.
+    muscle_names : tuple of str, length K
+    muscle_fractions : (M, K) float64 array in [0, 1]
+        Volume fraction of each tetrahedron inside each muscle.
+    muscle_fibres : (M, K, 3) float64 array
+        Unit fibre direction per tetrahedron and muscle (zero where the fraction is 0).
+    muscle_curves : (K, 64, 3) float64 array, mm
+        Centre curve of each muscle, origin first (rings closed).
+    muscle_rings : (K,) bool array
+        Sphincters (fibres round the ring).
+    muscle_widths_mm, muscle_thicknesses_mm : (K,) float64 arrays, mm
+    cranium_nodes, mandible_nodes : (a,), (b,) int64 arrays
+        Nodes on the bone surface, above and below the jaw cut: Dirichlet
+        nodes that move with the cranium or with the jaw.
+    rim_nodes : (c,) int64 array
+        Nodes on the wall that closes the tissue at the outer edge of the
+        meshed region, where real tissue continues (not bone; the FEM may
+        fix them or leave them free).
+    skin_tets : (n,) int64 array
+        Tetrahedron carrying each scan vertex.
+    skin_weights : (n, 4) float64 array
+        Barycentric weights: ``scan_vertices = sum_i w_i nodes[tets[skin_tets, i]]``.
+    skin_inside : (n,) bool array
+        Scan vertices inside their tetrahedron (the rest are up to the
+        fTetWild envelope outside the mesh, or outside the meshed region, and
+        are carried by affine extrapolation of the nearest tetrahedron).
+    skin_meshed : (n,) bool array
+        Scan vertices of the meshed region (the face in front of the ears).
+    condyles : (2, 3) float64 array, mm
+        Left and right temporomandibular joint centres.
+    landmark_names : tuple of str
+    landmark_vertices : (k,) int64 array
+        Scan vertex of each named landmark.
+    landmark_points : (k, 3) float64 array, mm
+    scan_vertices : (n, 3) float64 array, mm
+        The scan's vertices (file order).
+    scan_faces : (f, 3) int64 array
+        The scan's triangles.
+    bone_vertices : (s, 3) float64 array, mm
+        The bone surface (one vertex under each meshed skin vertex).
+    bone_faces : (g, 3) int64 array
+        Its triangles, facing away from the tissue (into the skull).
+    tissue_thickness_mm : (s,) float64 array, mm
+        The interpolated tissue-depth field at the meshed skin vertices.
+    provenance : dict
+        How the model was made (source scan, options, timings, quality, sources).
+    """
+
+    nodes: FloatArray
+    tets: IntArray
+    muscle_names: tuple[str, ...]
+    muscle_fractions: FloatArray
+    muscle_fibres: FloatArray
+    muscle_curves: FloatArray
+    muscle_rings: np.ndarray
+    muscle_widths_mm: FloatArray
+    muscle_thicknesses_mm: FloatArray
+    cranium_nodes: IntArray
+    mandible_nodes: IntArray
+    rim_nodes: IntArray
+    skin_tets: IntArray
+    skin_weights: FloatArray
+    skin_inside: np.ndarray
+    skin_meshed: np.ndarray
+    condyles: FloatArray
+    landmark_names: tuple[str, ...]
+    landmark_vertices: IntArray
+    landmark_points: FloatArray
+    scan_vertices: FloatArray
+    scan_faces: IntArray
+    bone_vertices: FloatArray
+    bone_faces: IntArray
+    tissue_thickness_mm: FloatArray
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of nodes N."""
+        return int(self.nodes.shape[0])
+
+    @property
+    def n_tets(self) -> int:
+        """Number of tetrahedra M."""
+        return int(self.tets.shape[0])
+
+    @property
+    def n_muscles(self) -> int:
+        """Number of muscles K."""
+        return len(self.muscle_names)
+
+    def skin_matrix(self) -> sp.csr_matrix:
+        """Sparse ``(n, N)`` matrix ``W`` with ``skin = W @ nodes`` (any deformed nodes too)."""
+        return embedding_matrix(SkinEmbedding(self.skin_tets, self.skin_weights, self.skin_inside), self.n_nodes, self.tets)
+
+    def skin_positions(self, nodes: Any | None = None) -> FloatArray:
+        """The scan's vertices carried by the mesh: ``(n, 3)`` mm for the given (default rest) nodes."""
+        X = self.nodes if nodes is None else np.asarray(nodes, dtype=np.float64)
+        corners = X[self.tets[self.skin_tets]]
+        return np.einsum("ij,ijk->ik", self.skin_weights, corners)
+
+    def save(self, folder: str | os.PathLike[str]) -> Path:
+        """Write ``anatomy.npz`` and ``anatomy.json`` into ``folder`` (created if needed).
+
+        Each file is written under a temporary name and renamed when complete
+        (:func:`~facecap.io._atomic.atomic_path`); the JSON, written last,
+        marks a finished model.
+
+        Parameters
+        ----------
+        folder : str or path-like
+
+        Returns
+        -------
+        pathlib.Path
+            The folder.
+        """
+        out = Path(folder)
+        if out.exists() and not out.is_dir():
+            raise InputError("exists and is not a folder", path=str(out))
+        out.mkdir(parents=True, exist_ok=True)
+        with atomic_path(out / "anatomy.npz") as tmp:
+            with open(tmp, "wb") as handle:
+                np.savez_compressed(handle, **{name: getattr(self, name) for name in _ARRAYS})
+        meta = {
+            "format": ANATOMY_FORMAT,
+            "units": "mm",
+            "muscle_names": list(self.muscle_names),
+            "landmark_names": list(self.landmark_names),
+            "counts": {
+                "nodes": self.n_nodes, "tets": self.n_tets, "muscles": self.n_muscles,
+                "cranium_nodes": int(self.cranium_nodes.size), "mandible_nodes": int(self.mandible_nodes.size),
+                "rim_nodes": int(self.rim_nodes.size), "scan_vertices": int(self.scan_vertices.shape[0]),
+            },
+            "provenance": self.provenance,
+        }
+        atomic_write_text(out / "anatomy.json", json.dumps(meta, indent=2) + "\n")
+        return out
+
+
+def load_anatomy(folder: str | os.PathLike[str]) -> FaceAnatomy:
+    """Read a model written by :meth:`FaceAnatomy.save`.
+
+    Parameters
+    ----------
+    folder : str or path-like
+        Holds ``anatomy.json`` and ``anatomy.npz``.
+
+    Returns
+    -------
+    FaceAnatomy
+
+    Raises
+    ------
+    FileFormatError
+        If a file is missing, unreadable, of another format, or its arrays
+        disagree with the counts in ``anatomy.json``.
+    """
+    folder = Path(folder)
+    meta_path, npz_path = folder / "anatomy.json", folder / "anatomy.npz"
+    for p in (meta_path, npz_path):
+        if not p.is_file():
+            raise FileFormatError("missing; not an anatomy folder written by build-anatomy", path=str(p))
+    try:
+        meta = json.loads(meta_path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise FileFormatError(f"not readable JSON ({exc})", path=str(meta_path)) from None
+    if not isinstance(meta, dict) or meta.get("format") != ANATOMY_FORMAT:
+        raise FileFormatError(f"expected format {ANATOMY_FORMAT!r}", path=str(meta_path))
+    try:
+        with np.load(npz_path, allow_pickle=False) as data:
+            arrays = {name: data[name] for name in _ARRAYS}
+    except (OSError, ValueError, KeyError) as exc:
+        raise FileFormatError(f"cannot read the arrays ({exc})", path=str(npz_path)) from None
+    counts = meta.get("counts", {})
+    if (arrays["nodes"].shape[0] != counts.get("nodes") or arrays["tets"].shape[0] != counts.get("tets")
+            or len(meta.get("muscle_names", [])) != arrays["muscle_fractions"].shape[1]):
+        raise FileFormatError("the arrays disagree with the counts in anatomy.json", path=str(npz_path))
+    return FaceAnatomy(
+        muscle_names=tuple(meta["muscle_names"]),
+        landmark_names=tuple(meta["landmark_names"]),
+        provenance=dict(meta.get("provenance", {})),
+        **arrays,
+    )
+
