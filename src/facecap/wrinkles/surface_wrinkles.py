@@ -1,0 +1,228 @@
+"""Tracked wrinkles carried from the images onto the animated surface, and the two cameras' views merged.
+
+Section 5.3 of Bickel et al. (2007): the large-scale mesh is mapped into the
+mocap frame (where the cameras are calibrated), each 2D valley spline is cast
+onto it through its camera, and the hits are carried back to the face by their
+triangle and barycentric coordinates, which do not depend on the frame the mesh
+is in. Depth and width come from the cross-sections of 5.2 along the spline.
+A wrinkle both cameras track is merged "by simple snapping and linear blending".
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..typing import FloatArray
+
+__all__ = ["SurfaceWrinkle", "wrinkles_on_surface", "merge_camera_wrinkles", "SNAP_MM"]
+
+SNAP_MM = 2.5
+"""Two cameras' curves of one paint closer than this (mean, over their overlap) are one wrinkle."""
+
+
+class SurfaceWrinkle(NamedTuple):
+    """One wrinkle's valley line on the face at one frame.
+
+    Attributes
+    ----------
+    wrinkle : str
+        Identity, stable over the take: ``'<camera>:<tracker id>'``, or the
+        cameras' identities joined by ``'+'`` once merged.
+    color : int
+        Paint index.
+    points : (k, 3) float64 array, mm
+        The valley line on the large-scale face (the face's frame, as the result stores it).
+    width : (k,) float64 array, mm
+        Half-width ``w`` (valley line to the zero crossing) at each point.
+    depth : (k,) float64 array, mm
+        Valley depth ``d`` (0 where the cross-sections found no wrinkle).
+    quality : (k,) float64 array
+        How squarely the camera saw each point (``cos^2`` of the angle between the view ray and the
+        surface normal), the weight of the linear blending.
+    """
+
+    wrinkle: str
+    color: int
+    points: FloatArray
+    width: FloatArray
+    depth: FloatArray
+    quality: FloatArray
+
+    @property
+    def arc_length(self) -> FloatArray:
+        """Arc length from the first point (k,), mm."""
+        return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(self.points, axis=0), axis=1))])
+
+
+def _median3(x: FloatArray) -> FloatArray:
+    """Running median of three (ends kept): one outlying cross-section does not dent the valley."""
+    if len(x) < 3:
+        return x
+    y = x.copy()
+    y[1:-1] = np.median(np.stack([x[:-2], x[1:-1], x[2:]]), axis=0)
+    return y
+
+
+def wrinkles_on_surface(curves_px: Sequence[Any], cross_sections: Any, camera: Any, caster: Any,
+                        face_vertices: Any, faces: Any, *, identities: Sequence[str] | None = None,
+                        colors: Sequence[int] | None = None, min_points: int = 4) -> list[SurfaceWrinkle]:
+    """One camera's valley curves and cross-sections at one frame, as lines on the face.
+
+    Parameters
+    ----------
+    curves_px : sequence of (m, 2) arrays, px
+        The valley polylines in the image (``TrackedWrinkle.curve()``), the ones the cross-sections
+        were fitted along, in the same order.
+    cross_sections : facecap.wrinkles.CrossSections
+        :func:`~facecap.wrinkles.fit_cross_sections` of this image along ``curves_px``.
+    camera : facecap.cameras.Camera
+    caster : facecap.cameras.RayCaster
+        The frame's large-scale mesh in the camera's (mocap) frame.
+    face_vertices : (n, 3) float array, mm
+        The same mesh in the face's frame (same vertex order and ``faces``).
+    faces : (f, 3) int array
+    identities : sequence of str, optional
+        Per curve (default ``'<camera>:<i>'``).
+    colors : sequence of int, optional
+        Paint index per curve (default 0).
+    min_points : int, default 4
+        A curve with fewer surface hits is left out (it ran off the face).
+
+    Returns
+    -------
+    list of SurfaceWrinkle
+        Curves without a single cross-section are kept with depth 0.
+    """
+    V = np.asarray(face_vertices, dtype=np.float64)
+    F = np.asarray(faces, dtype=np.int64)
+    fit, samples = cross_sections.fit, cross_sections.samples
+    out = []
+    for i, curve in enumerate(curves_px):
+        curve = np.asarray(curve, dtype=np.float64)
+        hits = caster.cast_pixels(camera, curve)
+        ok = hits.hit
+        if ok.sum() < min_points:
+            continue
+        tri, bary = hits.triangle[ok], hits.barycentric[ok]
+        points = np.einsum("kj,kjc->kc", bary, V[F[tri]])
+        view = hits.points[ok] - camera.centre
+        view /= np.linalg.norm(view, axis=1, keepdims=True)
+        quality = np.einsum("kc,kc->k", view, hits.normals[ok]) ** 2
+        arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        mine = np.flatnonzero(samples.curve == i)
+        width = np.full(len(points), 1.0)
+        depth = np.zeros(len(points))
+        finite = mine[np.isfinite(fit.width[mine]) & np.isfinite(fit.depth[mine])]
+        if finite.size:
+            pixel_of_hit = curve[ok]
+            nearest = np.argmin(np.linalg.norm(pixel_of_hit[None] - samples.centres_px[finite][:, None], axis=2),
+                                axis=1)
+            order = np.argsort(arc[nearest], kind="stable")
+            at = arc[nearest][order]
+            d = np.where(fit.has_wrinkle[finite], fit.depth[finite], 0.0)[order]
+            w = fit.width[finite][order]
+            depth = np.interp(arc, at, _median3(d))
+            width = np.interp(arc, at, _median3(w))
+        name = identities[i] if identities is not None else f"{camera.name}:{i}"
+        color = int(colors[i]) if colors is not None else 0
+        out.append(SurfaceWrinkle(name, color, points, width, depth, quality))
+    return out
+
+
+def _nearest_on_polyline(points: FloatArray, line: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Distance from each point to the polyline, and the arc length of its foot point."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    seg = np.linalg.norm(ab, axis=1)
+    start = np.concatenate([[0.0], np.cumsum(seg)])[:-1]
+    rel = points[:, None, :] - a[None]
+    t = np.clip(np.einsum("psc,sc->ps", rel, ab) / np.maximum(seg * seg, 1e-300)[None], 0.0, 1.0)
+    foot = a[None] + t[..., None] * ab[None]
+    dist = np.linalg.norm(points[:, None, :] - foot, axis=2)
+    j = np.argmin(dist, axis=1)
+    rows = np.arange(len(points))
+    return dist[rows, j], start[j] + t[rows, j] * seg[j]
+
+
+def _blend_pair(base: SurfaceWrinkle, other: SurfaceWrinkle, snap_mm: float) -> SurfaceWrinkle:
+    """``other`` snapped onto ``base``: blended where they overlap, its overhangs appended at the ends."""
+    dist, foot = _nearest_on_polyline(other.points, base.points)
+    arc_b = base.arc_length
+    # where base's points lie on the other's line: blend them there with the other's values
+    dist_b, foot_b = _nearest_on_polyline(base.points, other.points)
+    arc_o = other.arc_length
+    over_b = dist_b < snap_mm
+    P = base.points.copy()
+    W, D, Q = base.width.copy(), base.depth.copy(), base.quality.copy()
+    if over_b.any():
+        oq = np.interp(foot_b[over_b], arc_o, other.quality)
+        weight_o = oq / np.maximum(oq + Q[over_b], 1e-12)
+        o_point = np.stack([np.interp(foot_b[over_b], arc_o, other.points[:, c]) for c in range(3)], axis=1)
+        P[over_b] += weight_o[:, None] * (o_point - P[over_b])
+        W[over_b] += weight_o * (np.interp(foot_b[over_b], arc_o, other.width) - W[over_b])
+        D[over_b] += weight_o * (np.interp(foot_b[over_b], arc_o, other.depth) - D[over_b])
+        Q[over_b] = np.maximum(Q[over_b], oq)
+    # the other's points beyond base's ends (foot clamped to an end, and off the line): snapped on by the
+    # offset between base's end and the other's nearest point there
+    parts_before, parts_after = [], []
+    off = dist >= snap_mm
+    before = off & (foot <= 1e-9)
+    after = off & (foot >= arc_b[-1] - 1e-9)
+    for sel, end, parts in ((before, 0, parts_before), (after, -1, parts_after)):
+        if not sel.any():
+            continue
+        j = int(np.argmin(np.linalg.norm(other.points - P[end], axis=1)))
+        shift = P[end] - other.points[j]
+        idx = np.flatnonzero(sel)
+        # keep the overhang's own order, running away from base's end
+        idx = idx[np.argsort(np.linalg.norm(other.points[idx] - other.points[j], axis=1))]
+        parts.append((other.points[idx] + shift, other.width[idx], other.depth[idx], other.quality[idx]))
+    pieces = [(p[::-1], w[::-1], d[::-1], q[::-1]) for p, w, d, q in parts_before] + [(P, W, D, Q)] + parts_after
+    return SurfaceWrinkle(f"{base.wrinkle}+{other.wrinkle}", base.color,
+                          np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces]),
+                          np.concatenate([p[2] for p in pieces]), np.concatenate([p[3] for p in pieces]))
+
+
+def merge_camera_wrinkles(views: Sequence[Sequence[SurfaceWrinkle]], *, snap_mm: float = SNAP_MM
+                          ) -> list[SurfaceWrinkle]:
+    """Merge the wrinkles several cameras saw at one frame into one set.
+
+    Parameters
+    ----------
+    views : sequence (per camera) of sequences of SurfaceWrinkle
+    snap_mm : float, default :data:`SNAP_MM`
+        Two curves of the same paint are one wrinkle when at least a third of the shorter one lies
+        within this distance of the other.
+
+    Returns
+    -------
+    list of SurfaceWrinkle
+        Each wrinkle once: a curve only one camera saw as it is; one several saw, the one seen most
+        squarely (largest summed ``quality`` along it) with the others snapped onto it and blended
+        linearly by ``quality`` where they overlap, their overhangs appended.
+    """
+    merged: list[SurfaceWrinkle] = []
+    for view in views:
+        for curve in view:
+            best, best_share = -1, 0.0
+            for j, have in enumerate(merged):
+                if have.color != curve.color or curve.wrinkle.split(":")[0] in have.wrinkle:
+                    continue
+                d_new, _ = _nearest_on_polyline(curve.points, have.points)
+                d_have, _ = _nearest_on_polyline(have.points, curve.points)
+                share = max(float(np.mean(d_new < snap_mm)), float(np.mean(d_have < snap_mm)))
+                if share > best_share:
+                    best, best_share = j, share
+            if best < 0 or best_share < 1.0 / 3.0:
+                merged.append(curve)
+                continue
+            have = merged[best]
+            if curve.quality.sum() > have.quality.sum():
+                merged[best] = _blend_pair(curve, have, snap_mm)
+            else:
+                merged[best] = _blend_pair(have, curve, snap_mm)
+    return merged
+
