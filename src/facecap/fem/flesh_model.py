@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -39,12 +40,16 @@ class ElementResponse(NamedTuple):
         axis ``i``); made positive semi-definite when the definiteness fix is on.
     inverted : int
         Tetrahedra with ``det F <= 0``.
+    stress_derivative : (m, 9, 9) float64 array, kPa, or None
+        The exact ``d2 psi / dF2`` of each tetrahedron (flesh plus fibres, before any
+        fix), for :meth:`FleshModel.element_stiffness`.
     """
 
     energy: float
     forces: FloatArray
     element_stiffness: FloatArray | None
     inverted: int
+    stress_derivative: FloatArray | None = None
 
 
 class _Pattern:
@@ -72,19 +77,46 @@ class _Pattern:
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
 
+@numba.njit(cache=True, nogil=True)
+def _not_positive_definite(A: FloatArray, relative_floor: float) -> BoolArray:  # pragma: no cover - compiled
+    """Which symmetric 9 x 9 blocks fail a Cholesky factorisation (pivot below ``floor``)."""
+    m = A.shape[0]
+    bad = np.zeros(m, dtype=np.bool_)
+    L = np.empty((9, 9))
+    for e in range(m):
+        scale = 0.0
+        for i in range(9):
+            scale = max(scale, abs(A[e, i, i]))
+        floor = relative_floor * scale
+        for i in range(9):
+            for j in range(i + 1):
+                v = A[e, i, j]
+                for k in range(j):
+                    v -= L[i, k] * L[j, k]
+                if i == j:
+                    if v <= floor:
+                        bad[e] = True
+                        break
+                    L[i, i] = np.sqrt(v)
+                else:
+                    L[i, j] = v / L[j, j]
+            if bad[e]:
+                break
+    return bad
+
+
 def _project_psd(A: FloatArray) -> int:
     """Clamp the negative eigenvalues of each symmetric 9 x 9 block of ``A`` to zero, in place.
 
-    Returns how many blocks were changed. The eigenvalues alone are cheaper than the full
-    eigensystem, so the eigenvectors are computed only for the blocks that need them.
+    Returns how many blocks were changed. A compiled Cholesky attempt finds the blocks that
+    are already positive definite (most of them, cheaply); only the others go through the
+    eigensolver.
     """
-    A += A.transpose(0, 2, 1).copy()  # exact symmetry for the eigensolver
-    A *= 0.5
-    scale = np.abs(A).max(axis=(1, 2))
-    w = np.linalg.eigvalsh(A)
-    bad = np.flatnonzero(w[:, 0] < -1e-12 * scale)
+    bad = np.flatnonzero(_not_positive_definite(A, 1e-12))
     if bad.size:
-        w, V = np.linalg.eigh(A[bad])
+        block = A[bad]
+        block = 0.5 * (block + block.transpose(0, 2, 1))  # exact symmetry for the eigensolver
+        w, V = np.linalg.eigh(block)
         A[bad] = (V * np.maximum(w, 0.0)[:, None, :]) @ V.transpose(0, 2, 1)
     return int(bad.size)
 
@@ -341,12 +373,23 @@ class FleshModel:
         forces = self._scatter_nodes(self._corner_forces(P, vol, self.shape_gradients), self.tets)
         if derivatives == 1 or A is None:
             return ElementResponse(energy, forces, None, inverted)
-        if definiteness_fix:
-            _project_psd(A)
-        return ElementResponse(energy, forces, self._element_stiffness(A), inverted)
+        return ElementResponse(energy, forces, self.element_stiffness(A, definiteness_fix=definiteness_fix),
+                               inverted, A)
 
-    def _element_stiffness(self, A: FloatArray) -> FloatArray:
-        """``V_e sum_jl A_(ij)(kl) g_aj g_bl`` as (m, 12, 12), corner-major."""
+    def element_stiffness(self, stress_derivative: FloatArray, *, definiteness_fix: bool = True) -> FloatArray:
+        """Per-tetrahedron stiffness ``V_e sum_jl A_(ij)(kl) g_aj g_bl``, (m, 12, 12) mN / mm, corner-major.
+
+        Parameters
+        ----------
+        stress_derivative : (m, 9, 9) float64 array, kPa
+            ``A = d2 psi / dF2`` per tetrahedron (``ElementResponse.stress_derivative``).
+        definiteness_fix : bool, default True
+            Project a copy of each ``A`` onto the positive semi-definite cone first.
+        """
+        A = stress_derivative
+        if definiteness_fix:
+            A = A.copy()
+            _project_psd(A)
         m = A.shape[0]
         G = self.shape_gradients
         # contract l with g_b: (m, [i j k], 3) @ (m, 3, 4) -> (m, i, j, k, b)

@@ -18,7 +18,7 @@ import numpy as np
 from ..deform.factor_spd import SpdFactor
 from ..errors import FacecapWarning, InputError, SolverError
 from ..typing import FloatArray
-from .flesh_model import FleshModel
+from .flesh_model import ElementResponse, FleshModel
 
 __all__ = ["QuasistaticSolver", "QuasistaticResult", "solve_quasistatic"]
 
@@ -43,8 +43,11 @@ class QuasistaticResult(NamedTuple):
     inverted_tets_initial : int
         The same at the initial guess.
     timings : dict of str to float, s
-        ``assembly`` (energy, forces, stiffness and projection), ``factorisation``,
+        ``assembly`` (energy, forces, stiffness and projection), ``factorisation``
+        (including attempts on an exact stiffness that was not positive definite),
         ``solves`` and ``line_search``, summed over the steps.
+    projected_steps : int
+        Steps that used the projected stiffness (the others used the exact one).
     """
 
     positions: FloatArray
@@ -55,6 +58,7 @@ class QuasistaticResult(NamedTuple):
     inverted_tets: int
     inverted_tets_initial: int
     timings: dict[str, float]
+    projected_steps: int
 
 
 class QuasistaticSolver:
@@ -109,7 +113,8 @@ class QuasistaticSolver:
         self.force_tolerance_mn = self.tolerance * model.material.shear_modulus_kpa * model.mean_edge_mm**2
         self._factor: SpdFactor | None = None
         self._stiffness: Any = None
-        self._element_stiffness: FloatArray | None = None
+        self._element_stiffness: FloatArray | None = None  # the blocks of the factored matrix
+        self._state: ElementResponse | None = None
         self._positions: FloatArray | None = None
         self._activations: FloatArray | None = None
 
@@ -136,7 +141,7 @@ class QuasistaticSolver:
         ----------
         activations : (k,) float64 array
             Muscle activations (physically in [0, 1]).
-        dirichlet_positions : (d,) x 3 float64 array, mm
+        dirichlet_positions : (d, 3) float64 array, mm
             Positions of ``model.dirichlet_nodes``, in that order.
         x0 : (n, 3) float64 array, mm, optional
             Initial guess (the previous frame's solution, interpolated states in a line
@@ -151,6 +156,17 @@ class QuasistaticSolver:
         ------
         SolverError
             If the factorisation fails (no Dirichlet support for some part of the mesh).
+
+        Notes
+        -----
+        Each step first tries the exact stiffness: where it is positive definite (PARDISO
+        factors it, and the step descends) the step is a full Newton step, with quadratic
+        convergence near a stable equilibrium. Where it is not (far from equilibrium,
+        inverted or strongly compressed tetrahedra), the step uses the projected stiffness
+        (every tetrahedron's ``d2 psi / dF2`` clamped to positive semi-definite), and the
+        exact one is tried again after two full steps. The projected stiffness alone
+        converges only linearly here, since at the equilibrium of a compressed, nearly
+        incompressible flesh many tetrahedra are projected.
         """
         model = self.model
         a = model._activations(activations)
@@ -159,11 +175,12 @@ class QuasistaticSolver:
         timings = {"assembly": 0.0, "factorisation": 0.0, "solves": 0.0, "line_search": 0.0}
         self._drop_factor()
         t = time.perf_counter()
-        state = model.evaluate(x, a)
+        state = model.evaluate(x, a, definiteness_fix=False)
         timings["assembly"] += time.perf_counter() - t
         inverted_initial = state.inverted
-        iterations = 0
+        iterations = projected_steps = 0
         converged = False
+        wait_before_exact = 0  # steps to take with the projected stiffness before trying the exact one
         while True:
             residual = state.forces[model.free_nodes]
             residual_max = float(np.sqrt((residual**2).sum(axis=1)).max(initial=0.0))
@@ -172,35 +189,63 @@ class QuasistaticSolver:
                 break
             if iterations >= self.max_iterations:
                 break
-            assert state.element_stiffness is not None
-            t = time.perf_counter()
-            K = model.assemble(state.element_stiffness, free_only=True)
-            timings["assembly"] += time.perf_counter() - t
-            t = time.perf_counter()
-            factor = SpdFactor(K, backend=self.backend)
-            timings["factorisation"] += time.perf_counter() - t
-            t = time.perf_counter()
             r = residual.reshape(-1)
-            step = factor.solve(r)  # K step = f: a descent direction of E (f = -grad E)
-            factor.free()
-            timings["solves"] += time.perf_counter() - t
+            step = None
+            if wait_before_exact == 0:
+                assert state.element_stiffness is not None
+                step = self._newton_step(state.element_stiffness, r, timings)
+                if step is None:
+                    wait_before_exact = 2
+            if step is None:
+                assert state.stress_derivative is not None
+                t = time.perf_counter()
+                projected = model.element_stiffness(state.stress_derivative, definiteness_fix=True)
+                timings["assembly"] += time.perf_counter() - t
+                step = self._newton_step(projected, r, timings, must_succeed=True)
+                assert step is not None
+                projected_steps += 1
             t = time.perf_counter()
-            x, accepted = self._line_search(x, a, state.energy, r, step, free)
+            x, alpha = self._line_search(x, a, state.energy, r, step, free)
             timings["line_search"] += time.perf_counter() - t
             iterations += 1
+            if alpha == 1.0 and wait_before_exact > 0:
+                wait_before_exact -= 1
             t = time.perf_counter()
-            state = model.evaluate(x, a)
+            state = model.evaluate(x, a, definiteness_fix=False)
             timings["assembly"] += time.perf_counter() - t
-            if not accepted:
+            if alpha == 0.0:
                 break
-        self._positions, self._activations = x, a
-        self._element_stiffness = state.element_stiffness
+        self._positions, self._activations, self._state = x, a, state
         return QuasistaticResult(x, converged, iterations, residual_max, state.energy, state.inverted,
-                                 inverted_initial, timings)
+                                 inverted_initial, timings, projected_steps)
+
+    def _newton_step(self, element_stiffness: FloatArray, r: FloatArray, timings: dict[str, float], *,
+                     must_succeed: bool = False) -> FloatArray | None:
+        """Solve ``K step = r``; None where ``K`` is not positive definite (unless ``must_succeed``)."""
+        t = time.perf_counter()
+        K = self.model.assemble(element_stiffness, free_only=True)
+        timings["assembly"] += time.perf_counter() - t
+        t = time.perf_counter()
+        try:
+            factor = SpdFactor(K, backend=self.backend)
+        except SolverError:
+            if must_succeed:
+                raise
+            return None
+        finally:
+            timings["factorisation"] += time.perf_counter() - t
+        t = time.perf_counter()
+        step = factor.solve(r)  # K step = f: a descent direction of E when K is positive definite
+        factor.free()
+        timings["solves"] += time.perf_counter() - t
+        # SuperLU factors indefinite matrices too: a step that does not descend is rejected here.
+        if not must_succeed and float(np.dot(r, step)) <= 0.0:
+            return None
+        return step
 
     def _line_search(self, x: FloatArray, a: FloatArray, energy: float, r: FloatArray, step: FloatArray,
-                     free: Any) -> tuple[FloatArray, bool]:
-        """Backtracking (Armijo) on the energy along ``step``; returns the new positions and success."""
+                     free: Any) -> tuple[FloatArray, float]:
+        """Backtracking (Armijo) on the energy along ``step``; the new positions and the step length (0: none)."""
         slope = -float(np.dot(r, step))  # dE/dalpha at 0, negative for a descent step
         # The energy is a sum of element terms: below this difference the comparison is round-off.
         noise = 1e-12 * (abs(energy) + 1.0) + 1e-9 * self.force_tolerance_mn * float(np.abs(step).max(initial=0.0))
@@ -212,9 +257,9 @@ class QuasistaticSolver:
             trial_x = trial.reshape(x.shape)
             trial_energy = self.model.evaluate(trial_x, a, derivatives=0).energy
             if np.isfinite(trial_energy) and trial_energy <= energy + 1e-4 * alpha * slope + noise:
-                return trial_x, True
+                return trial_x, alpha
             alpha *= 0.5
-        return x, False
+        return x, 0.0
 
     # -- reuse of the factorisation (eq. 5 and 6) ----------------------------------------------
     def _drop_factor(self) -> None:
@@ -230,22 +275,22 @@ class QuasistaticSolver:
         The exact stiffness where it is positive definite (see ``exact_jacobians``), else
         the projected one; ``jacobian_stiffness`` says which.
         """
-        if self._element_stiffness is None or self._positions is None or self._activations is None:
+        state = self._state
+        if state is None or state.element_stiffness is None or state.stress_derivative is None:
             raise InputError("no solution yet: call solve() first")
         if self._factor is None:
             if self.exact_jacobians:
-                exact = self.model.evaluate(self._positions, self._activations, definiteness_fix=False)
-                assert exact.element_stiffness is not None
-                stiffness = self.model.assemble(exact.element_stiffness, free_only=True)
+                stiffness = self.model.assemble(state.element_stiffness, free_only=True)
                 try:
                     self._factor = SpdFactor(stiffness, backend=self.backend)
-                    self._element_stiffness, self._stiffness = exact.element_stiffness, stiffness
+                    self._element_stiffness, self._stiffness = state.element_stiffness, stiffness
                     self.jacobian_stiffness = "exact"
                     return self._factor
                 except SolverError:
                     warnings.warn("the stiffness at the solution is not positive definite (an unstable "
                                   "equilibrium, or inverted tetrahedra); the Jacobians use the projected "
-                                  "stiffness of the Newton steps and are approximate", FacecapWarning, stacklevel=2)
+                                  "stiffness and are approximate", FacecapWarning, stacklevel=2)
+            self._element_stiffness = self.model.element_stiffness(state.stress_derivative, definiteness_fix=True)
             self._stiffness = self.model.assemble(self._element_stiffness, free_only=True)
             self._factor = SpdFactor(self._stiffness, backend=self.backend)
             self.jacobian_stiffness = "projected"
@@ -296,8 +341,8 @@ class QuasistaticSolver:
             Free rows from the solve, Dirichlet rows equal to ``dirichlet_velocity``.
         """
         model = self.model
-        if self._element_stiffness is None:
-            raise InputError("no solution yet: call solve() first")
+        self.factor()  # fixes which stiffness (exact or projected) the Jacobians use
+        assert self._element_stiffness is not None
         v = np.asarray(dirichlet_velocity, dtype=np.float64)
         if v.shape != (model.dirichlet_nodes.size, 3):
             raise InputError(f"dirichlet_velocity: expected shape ({model.dirichlet_nodes.size}, 3), got {v.shape}")
