@@ -35,8 +35,10 @@ NORMAL_SMOOTHING_MM = 10.0
 """Diffusion length of the vertex normals the offset follows (implicit smoothing, ``lambda = length^2``)."""
 BONE_SMOOTHING_MM = 6.0
 """Diffusion length that removes skin detail (nose, lips, eyelids) from the offset bone surface."""
-THICKNESS_CORRECTIONS = 4
+THICKNESS_CORRECTIONS = 6
 """Fixed-point passes that restore the table thickness at the landmarks after smoothing."""
+_OFFSET_FLOOR_MM = 1.0
+"""Least offset before smoothing (the result keeps :data:`MIN_TISSUE_MM`)."""
 
 # The meshed skin: the face in front of the ears, from the forehead to just under the chin
 # (face-frame mm relative to the landmarks, see docs/anatomy.md).
@@ -97,11 +99,39 @@ def _crop(scan: Mesh, lm: AnatomyLandmarks) -> IntArray:
     z_back = min(lm.local(lm.point(f"supraglenoid_{s}"))[2] for s in "LR") - CROP_BEHIND_SUPRAGLENOID_MM
     keep_v = (P[:, 1] > y_low) & (P[:, 1] < y_high) & (P[:, 2] > z_back)
     F = scan.faces
-    keep_f = np.flatnonzero(keep_v[F].all(axis=1))
+    keep_f = np.flatnonzero(keep_v[F].all(axis=1) & ~_folds_inwards(scan.vertices, F, lm))
     if keep_f.size == 0:
         raise MeshError("the scan has no faces in front of the ears between forehead and chin", path=scan.source_path)
     keep_f = _largest_piece(F, keep_f)
     return _clean_boundary(F, keep_f)
+
+
+FOLD_NORMAL_Z = 0.2
+"""Faces near the eyes and mouth whose normal's forward component is below this curl into the head."""
+
+
+def _folds_inwards(V: FloatArray, F: IntArray, lm: AnatomyLandmarks) -> np.ndarray:
+    """Faces where the skin curls back into the head: inner eyelids and inner lips.
+
+    Scans (the ICT topology among them) continue the eyelid and lip margins
+    some millimetres into the eye sockets and the mouth. Offset inwards, the
+    bone would cross those folds, so they are left out of the meshed skin
+    (their vertices are still carried by the nearest tetrahedron): faces
+    within 22 mm of an eye centre or within the mouth's half-width plus 6 mm
+    of the stomion whose unit normal points less than 0.2 forwards.
+    """
+    P = lm.local(V)
+    tri = P[F]
+    n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n_z = n[:, 2] / np.maximum(np.linalg.norm(n, axis=1), 1e-300)
+    centre = tri.mean(axis=1)
+    near = np.zeros(F.shape[0], dtype=bool)
+    for side in "LR":
+        eye = 0.5 * (lm.local(lm.point(f"exocanthion_{side}")) + lm.local(lm.point(f"endocanthion_{side}")))
+        near |= np.linalg.norm(centre - eye, axis=1) < 22.0
+    mouth_half = 0.5 * abs(lm.local(lm.point("cheilion_L"))[0] - lm.local(lm.point("cheilion_R"))[0])
+    near |= np.linalg.norm(centre - lm.local(lm.point("stomion")), axis=1) < mouth_half + 6.0
+    return near & (n_z < FOLD_NORMAL_Z)
 
 
 def _largest_piece(F: IntArray, faces: IntArray) -> IntArray:
@@ -157,6 +187,76 @@ def _depth_along(origins: FloatArray, directions: FloatArray, V: FloatArray, F: 
     return out
 
 
+NOSE_MARGIN_MM = 5.0
+"""The nose zone reaches this far beyond the alae sideways and below the subnasale."""
+
+
+def _nose_footprint(S: FloatArray, landmarks: AnatomyLandmarks, *, behind_alae: bool) -> np.ndarray:
+    """Vertices over the cartilaginous nose's footprint, in front of (or behind) the alae.
+
+    In the face frame: ``y`` from the subnasale minus 5 mm up to the
+    rhinion, ``|x|`` within a half-width growing linearly from 6 mm at the
+    rhinion to the alae plus 5 mm at the subnasale; in front of the plane
+    5 mm behind the alae (the outer nose), or behind it (the nostril
+    passages that scans carry into the head).
+    """
+    lm = landmarks
+    P = lm.local(S)
+    y_top = lm.local(lm.point("rhinion"))[1]
+    y_low = lm.local(lm.point("subnasale"))[1] - NOSE_MARGIN_MM
+    alar = 0.5 * (abs(lm.local(lm.point("alare_L"))[0]) + abs(lm.local(lm.point("alare_R"))[0])) + NOSE_MARGIN_MM
+    z_alae = 0.5 * (lm.local(lm.point("alare_L"))[2] + lm.local(lm.point("alare_R"))[2]) - NOSE_MARGIN_MM
+    share = np.clip((y_top - P[:, 1]) / max(y_top - y_low, 1e-9), 0.0, 1.0)
+    half = 6.0 + share * (alar - 6.0)
+    over = (P[:, 1] <= y_top) & (P[:, 1] >= y_low) & (np.abs(P[:, 0]) <= half)
+    return over & ((P[:, 2] < z_alae) if behind_alae else (P[:, 2] >= z_alae))
+
+
+def nose_zone(S: FloatArray, landmarks: AnatomyLandmarks) -> np.ndarray:
+    """Skin vertices of the cartilaginous nose: below the rhinion, above the subnasale, between the alae."""
+    return _nose_footprint(S, landmarks, behind_alae=False)
+
+
+def _without_nose(S: FloatArray, F: IntArray, landmarks: AnatomyLandmarks) -> FloatArray:
+    """The skin with the nose zone replaced by a harmonic membrane across its base.
+
+    Uniform (graph) Laplacian weights: the nose's folded nostrils give the
+    cotangent weights negative values, the graph Laplacian keeps the
+    membrane inside the convex hull of the zone's rim.
+    """
+    zone = nose_zone(S, landmarks)
+    if not zone.any():
+        return S
+    n = S.shape[0]
+    E = np.unique(np.sort(F[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1), axis=0)
+    A = sp.coo_matrix((np.ones(len(E)), (E[:, 0], E[:, 1])), shape=(n, n))
+    A = (A + A.T).tocsr()
+    L = (sp.diags(np.asarray(A.sum(axis=1)).ravel()) - A).tocsr()
+    inside, outside = np.flatnonzero(zone), np.flatnonzero(~zone)
+    out = S.copy()
+    rhs = -(L[inside][:, outside] @ S[outside])
+    out[inside] = spla.splu(L[inside][:, inside].tocsc()).solve(rhs)
+    return out
+
+
+def _keep_behind_skin(bone: FloatArray, S: FloatArray, F: IntArray, N: FloatArray, passes: int = 4) -> FloatArray:
+    """Push bone vertices deeper (along ``-N``) where they come closer than the floor to any skin.
+
+    Needed where the skin folds back over the bone's offset (inner lips,
+    nostrils at the edge of the nose zone). Each pass moves a vertex at most
+    the floor's depth, so nothing runs away.
+    """
+    bone = bone.copy()
+    for _ in range(passes):
+        d2, _, _ = igl.point_mesh_squared_distance(bone, S, F)
+        d = np.sqrt(d2)
+        close = d < MIN_TISSUE_MM
+        if not close.any():
+            break
+        bone[close] -= (MIN_TISSUE_MM - d[close] + 0.1)[:, None] * N[close]
+    return bone
+
+
 def _walls(skin_faces: IntArray, n: int) -> tuple[IntArray, IntArray]:
     """Quads (two triangles) joining each skin boundary edge a->b to its bone copy a'->b', and their labels.
 
@@ -202,11 +302,13 @@ def soft_tissue_shell(scan_mesh: Mesh, landmarks: AnatomyLandmarks) -> SoftTissu
        supraglenoid points), from 12 mm under the menton to 15 mm above the
        mid-forehead point; the largest piece, without bow-tie boundary vertices.
     2. Normals: vertex normals diffused over 10 mm and renormalised.
-    3. Thickness ``t``: harmonic interpolation of the table depths at the
-       landmarks, at least 3 mm.
+    3. Thickness ``t``: harmonic interpolation of the landmark depths, at least 1 mm.
     4. Bone ``B = smooth_6mm(S - t n)`` with the boundary rows held; then the
        landmark depths are corrected ``t_k += t_table - t_measured`` (measured
-       along ``-n`` from the skin to ``B``) and steps 3-4 repeated 4 times.
+       along ``-n`` from the skin to ``B``) and steps 3-4 repeated 6 times.
+       Where the bone ends up closer than 3 mm behind the nearest skin (the
+       nostril cavities and inner lips fold back over it) it is pushed
+       deeper along ``-n``.
     5. Closed surface: skin, bone reversed, walls on every boundary loop.
     """
     V = scan_mesh.vertices
@@ -228,18 +330,24 @@ def soft_tissue_shell(scan_mesh: Mesh, landmarks: AnatomyLandmarks) -> SoftTissu
                          path=scan_mesh.source_path)
     rows_a, depth_table = np.array(rows, dtype=np.int64), np.array(depths)
 
-    N0 = igl.per_vertex_normals(S, Fs)
-    N = _smooth(S, Fs, N0, NORMAL_SMOOTHING_MM)
+    # the nose below the nasal bones is cartilage and soft tissue: the bone is offset from the face
+    # with the nose taken away (a membrane across its base), not from the nose itself
+    base = _without_nose(S, Fs, landmarks)
+    N0 = igl.per_vertex_normals(base, Fs)
+    N = _smooth(base, Fs, N0, NORMAL_SMOOTHING_MM)
     N /= np.linalg.norm(N, axis=1, keepdims=True)
     boundary = np.unique(np.concatenate(igl.boundary_loop_all(Fs))).astype(np.int64)
 
     target = depth_table.copy()
     for _ in range(THICKNESS_CORRECTIONS + 1):
-        t = np.maximum(tissue_thickness(S, Fs, rows_a, np.maximum(target, MIN_TISSUE_MM)), MIN_TISSUE_MM)
-        bone = _smooth(S, Fs, S - t[:, None] * N, BONE_SMOOTHING_MM, fixed=boundary)
+        # the offset before smoothing may go thinner than the floor where smoothing pushes the bone
+        # back out (convex skin: forehead, below the eyes); the floor is checked on the result below
+        t = np.maximum(tissue_thickness(S, Fs, rows_a, np.maximum(target, _OFFSET_FLOOR_MM)), _OFFSET_FLOOR_MM)
+        bone = _smooth(base, Fs, base - t[:, None] * N, BONE_SMOOTHING_MM, fixed=boundary)
         measured = _depth_along(S[rows_a], -N[rows_a], bone, Fs)
         ok = np.isfinite(measured)
         target[ok] += depth_table[ok] - measured[ok]
+    bone = _keep_behind_skin(bone, S, Fs, N)
 
     closed_V = np.concatenate([S, bone])
     walls, wall_part = _walls(Fs, n)
