@@ -428,7 +428,8 @@ class FleshModel:
         base, _ = self._fibre_weights(np.zeros(k))
         fib = fibre_response(F, self._pair_direction, np.zeros_like(base), base, self.fibre, derivatives=1)
         assert fib.stress is not None
-        corner = self._corner_forces(fib.stress, self.rest_volumes[self._pair_tet], self.shape_gradients[self._pair_tet])
+        pair_volumes = self.rest_volumes[self._pair_tet]
+        corner = self._corner_forces(fib.stress, pair_volumes, self.shape_gradients[self._pair_tet])
         tets = self.tets[self._pair_tet]
         idx = ((self._pair_muscle[:, None, None] * n + tets[:, :, None]) * 3 + np.arange(3)).reshape(-1)
         return np.bincount(idx, weights=corner.reshape(-1), minlength=k * n * 3).reshape(k, n, 3)

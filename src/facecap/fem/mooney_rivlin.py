@@ -111,7 +111,8 @@ def _volume_factor(J: FloatArray, exponent: float, J_min: float) -> tuple[FloatA
 
 
 @numba.njit(cache=True, nogil=True)
-def _stress_derivatives(F, C, cof, dI1, dI2, I1, I2, J, g1, dg1, d2g1, g2, dg2, d2g2, s1, c10, c01, kappa):  # type: ignore[no-untyped-def]
+def _stress_derivatives(F, C, cof, dI1, dI2, I1, I2, J, g1, dg1, d2g1, g2, dg2, d2g2,  # type: ignore[no-untyped-def]
+                        s1, c10, c01, kappa):
     """``d2 psi / dF_ij dF_kl`` (m, 9, 9) from the invariants and their first derivatives.
 
     ``psi = c10 g1(J) I1 + c01 g2(J) I2 + kappa/2 (J-1)^2`` (constants dropped), with
