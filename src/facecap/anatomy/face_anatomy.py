@@ -132,6 +132,11 @@ class FaceAnatomy:
         """Number of muscles K."""
         return len(self.muscle_names)
 
+    @property
+    def dirichlet_nodes(self) -> IntArray:
+        """All bone nodes: ``cranium_nodes`` then ``mandible_nodes`` (the FEM's Dirichlet set, in that order)."""
+        return np.concatenate([self.cranium_nodes, self.mandible_nodes])
+
     def skin_matrix(self) -> sp.csr_matrix:
         """Sparse ``(n, N)`` matrix ``W`` with ``skin = W @ nodes`` (any deformed nodes too)."""
         return embedding_matrix(SkinEmbedding(self.skin_tets, self.skin_weights, self.skin_inside), self.n_nodes, self.tets)

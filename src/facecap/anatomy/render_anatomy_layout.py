@@ -2,7 +2,7 @@
 
 matplotlib's Agg canvas (no display): the skin grey-shaded with back faces
 culled, each muscle as a band along its centre curve as wide as the muscle,
-one colour per muscle pair, labelled in the front view.
+one colour per muscle pair, each labelled once per view (its left-side copy).
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ def _draw_panel(ax, anatomy: FaceAnatomy, R: np.ndarray, side: str, labels: bool
 
 def render_anatomy_layout(anatomy: FaceAnatomy, path: str | os.PathLike[str], *,
                           size_px: tuple[int, int] = (1800, 1000), title: str | None = None) -> None:
-    """Write a PNG of the muscles over the skin: front view (labelled) and the subject's left side.
+    """Write a PNG of the muscles over the skin: front view and the subject's left side, labelled.
 
     Parameters
     ----------
@@ -103,7 +103,7 @@ def render_anatomy_layout(anatomy: FaceAnatomy, path: str | os.PathLike[str], *,
     top = 0.93
     for i, side in enumerate(("front", "left")):
         ax = fig.add_axes((0.5 * i, 0.0, 0.5, top))
-        _draw_panel(ax, anatomy, _view(frame, side), side, labels=(side == "front"))
+        _draw_panel(ax, anatomy, _view(frame, side), side, labels=True)
         ax.set_title("front" if side == "front" else "subject's left", fontsize=11)
     fig.suptitle(title or f"{anatomy.n_muscles} muscles over the skin; {anatomy.n_tets:,} tetrahedra "
                  f"(each band as wide as its muscle)", fontsize=13)

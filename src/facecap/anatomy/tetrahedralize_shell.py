@@ -29,7 +29,7 @@ ENVELOPE_MM = 0.6
 """fTetWild's envelope: the tetrahedral boundary stays within this distance of the closed surface."""
 OPTIMIZE_PASSES = 40
 """fTetWild's mesh-improvement passes by default (its own default is 80; 40 reach the same quality here)."""
-_TETS_PER_IDEAL = 1.75
+_TETS_PER_IDEAL = 1.25
 """Measured ratio of fTetWild's tetrahedron count to ``volume / ideal regular-tet volume`` (calibrates ``n_tets``)."""
 
 
@@ -180,7 +180,7 @@ def tetrahedralize_shell(V: FloatArray, F: IntArray, *, n_tets: int = 100_000, t
     Notes
     -----
     The ideal edge length is that of a regular tetrahedron of volume
-    ``volume * c / n_tets`` (``c`` = 1.75, measured on the ICT face: fTetWild adds
+    ``volume * c / n_tets`` (``c`` = 1.25, measured on the ICT face: fTetWild adds
     tetrahedra near the surface). When the surface is much finer than that
     edge it is first decimated (libigl edge collapse) to about two triangles
     per ideal edge squared, which fTetWild would otherwise do itself, slowly;
