@@ -11,6 +11,9 @@ In the order a user meets them:
   Voronoi mass (Meyer et al. 2003), as :class:`LaplaceOperators`.
 - :func:`mean_curvature` (``mean_curvature.py``): per-vertex mean curvature
   from local quadric fits.
+- :class:`LocalFrameDetails`, :func:`local_frames` (``local_frame_details.py``):
+  detail displacements stored in a base surface's local frames and added back
+  on a changed base (Kobbelt et al. 1999).
 - :func:`review_mesh` (``review_mesh.py``): a decimated mesh made of a subset of
   the scan's own vertices, for review files, as a :class:`ReviewMesh`.
 """
@@ -20,6 +23,7 @@ from __future__ import annotations
 from .check_mesh import MeshCheck, check_mesh
 from .connected_pieces import connected_pieces
 from .laplacian import LaplaceOperators, laplace_operators
+from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
 from .review_mesh import ReviewMesh, review_mesh
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
@@ -32,6 +36,8 @@ __all__ = [
     "WeldedMesh",
     "laplace_operators",
     "LaplaceOperators",
+    "LocalFrameDetails",
+    "local_frames",
     "mean_curvature",
     "DEFAULT_FEATURE_THRESHOLD",
     "review_mesh",

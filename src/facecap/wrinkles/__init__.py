@@ -15,6 +15,9 @@
   eq. 6 on any sampled profile.
 - :func:`fit_cross_sections` (``fit_cross_sections.py``): depth and width along a
   valley spline from one image, the ratio fit of eq. 7 by batched Gauss-Newton.
+- :func:`remove_wrinkles`, :func:`remove_wrinkles_arrays`, :class:`WrinkleRemoval`
+  (``remove_wrinkles.py``): the wrinkles a neutral scan already has, removed by
+  multi-scale smoothing with its fine details kept (section 5.4).
 """
 
 from __future__ import annotations
@@ -38,6 +41,14 @@ from .fit_cross_sections import (
     fit_cross_sections,
     fit_profiles,
     sample_cross_sections,
+)
+from .remove_wrinkles import (
+    DEFAULT_DETAIL_SCALE_MM,
+    DEFAULT_LARGE_SCALE_MM,
+    DEFAULT_SMOOTHING_STEPS,
+    WrinkleRemoval,
+    remove_wrinkles,
+    remove_wrinkles_arrays,
 )
 
 __all__ = [
@@ -65,4 +76,10 @@ __all__ = [
     "CrossSections",
     "CrossSectionSamples",
     "ProfileFit",
+    "remove_wrinkles",
+    "remove_wrinkles_arrays",
+    "WrinkleRemoval",
+    "DEFAULT_DETAIL_SCALE_MM",
+    "DEFAULT_LARGE_SCALE_MM",
+    "DEFAULT_SMOOTHING_STEPS",
 ]
