@@ -438,6 +438,85 @@ def _cmd_synth(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_wrinkles(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "wrinkles",
+        help="add expression wrinkles from painted-wrinkle footage to an animate result (Bickel et al. 2007, 5)",
+        description="Track the painted wrinkles in each camera, fit their cross-sections from self-shadowing, "
+        "and synthesise them on the large-scale result with the nonlinear discrete shell, video frame by video "
+        "frame on the frame runner; writes a result folder like animate's plus wrinkles.json.",
+    )
+    p.add_argument("--result", required=True, help="a facecap animate result folder")
+    p.add_argument("--cameras", required=True, nargs="+",
+                   help="the facecap camera file (cameras.json), or one OpenCV calibration YAML per camera in --video order")
+    p.add_argument("--video", required=True, nargs="+", help="one image folder or video file per camera")
+    p.add_argument("--masks", required=True, nargs="+",
+                   help="one paint mask of the first video frame per camera (label PNG or binary mask), in --video order")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--video-rate", type=float, default=None, help="footage rate in Hz [the camera file's]")
+    p.add_argument("--first-mocap-frame", type=float, default=None,
+                   help="mocap frame of video frame 0 [the camera file's, else 0]")
+    p.add_argument("--depth-scale", type=float, default=1.0, help="scale every wrinkle's depth [1.0]")
+    p.add_argument("--camera-units", default="mm", help="unit of T in OpenCV calibration files [mm]")
+    p.add_argument("--scheduler", default=None,
+                   help="Dask scheduler address for an existing cluster; 'local' for a local cluster of --workers "
+                        "processes [run in this process]")
+    p.add_argument("--workers", type=int, default=2, help="processes of a local cluster [2]")
+    p.add_argument("--work", default=None, help="resumable work folder (kept; a rerun resumes) [a temporary one]")
+    p.add_argument("--per-frame-projection", action="store_true",
+                   help="cast every frame's splines onto that frame's mesh (the paper) instead of carrying the "
+                        "first frame's lines with the skin")
+    p.add_argument("--export", default="", help="exports, comma-separated, as for animate")
+    p.set_defaults(func=_cmd_wrinkles)
+
+
+def _camera_setup(paths: Sequence[str], videos: Sequence[str], unit: str) -> tuple[list, float | None, float]:
+    """Cameras in --video order, and the rate and offset the camera file gives (None, 0 for YAML files)."""
+    from pathlib import Path
+
+    from .cameras import read_camera_file, read_opencv_calibration
+
+    if len(paths) == 1 and Path(paths[0]).suffix.lower() == ".json":
+        setup = read_camera_file(paths[0])
+        stems = [Path(v).stem if Path(v).suffix else Path(v).name for v in videos]
+        if all(stem in setup.names for stem in stems):
+            cameras = [setup.camera(stem) for stem in stems]
+        elif len(setup.cameras) == len(videos):
+            cameras = list(setup.cameras)
+        else:
+            raise FacecapError(f"{paths[0]}: {len(setup.cameras)} cameras ({', '.join(setup.names)}) for "
+                               f"{len(videos)} footage; name each footage after its camera or give one per camera")
+        return cameras, setup.video_rate_hz, setup.first_mocap_frame
+    if len(paths) != len(videos):
+        raise FacecapError(f"--cameras: {len(paths)} calibration files for {len(videos)} footage (one per camera)")
+    return [read_opencv_calibration(p, unit=unit) for p in paths], None, 0.0
+
+
+def _cmd_wrinkles(args: argparse.Namespace) -> int:
+    from .io.export_result import parse_export_formats
+    from .wrinkles import capture_wrinkles
+
+    if len(args.masks) != len(args.video):
+        raise FacecapError(f"--masks: {len(args.masks)} masks for {len(args.video)} footage (one per camera)")
+    if args.depth_scale < 0 or args.workers < 1:
+        raise FacecapError("--depth-scale must be >= 0 and --workers >= 1")
+    cameras, rate, first = _camera_setup(args.cameras, args.video, args.camera_units)
+    rate = args.video_rate if args.video_rate is not None else rate
+    if rate is None:
+        raise FacecapError("--video-rate: the calibration files give no footage rate; give it in Hz")
+    first = args.first_mocap_frame if args.first_mocap_frame is not None else first
+    scheduler = "synchronous" if args.scheduler is None else (None if args.scheduler == "local" else args.scheduler)
+    done = capture_wrinkles(args.result, cameras, args.video, args.masks, args.out, video_rate_hz=rate,
+                            first_mocap_frame=first, depth_scale=args.depth_scale, scheduler=scheduler,
+                            n_workers=args.workers, work_dir=args.work, exports=parse_export_formats(args.export),
+                            anchor=not args.per_frame_projection, progress=not args.quiet)
+    if not args.quiet:
+        t = done.timings
+        print(f"wrote {done.out_dir}: wrinkles on {done.n_video_frames} video frames (tracking {t['tracking_s']:.1f} s, "
+              f"cross-sections and synthesis {t['cross_sections_and_synthesis_s']:.1f} s)")
+    return 0
+
+
 def _add_demo(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="run the main job on the bundled sample, writing facecap-demo/")
     p.add_argument("--out", default="facecap-demo", help="output folder [facecap-demo]")
@@ -471,6 +550,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view(sub)
     _add_scan_commands(sub)
     _add_synth(sub)
+    _add_wrinkles(sub)
     _add_demo(sub)
     for action in sub.choices.values():  # let -q/--quiet also follow the command
         action.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,

@@ -380,6 +380,7 @@ def animate_scan(
             writer.stream(lambda start, stop, out: solver.deform_into(disp32[start:stop], rest32, out),
                           batch_frames=batch_frames, head_pose=head_pose, progress=progress, desc="animate")
         np.save(writer.path("markers.npy"), (face_markers * to_unit).astype(np.float32))
+        _save_correspondence(writer.path("correspondence.npz"), prepared, rest_markers, centres)
         timings["deform_and_write_s"] = time.perf_counter() - t
         # frames computed and written per second; None when nothing per frame was asked for
         timings["frames_per_second"] = T / max(timings["deform_and_write_s"], 1e-9) if writer.needs_frames else None
@@ -448,6 +449,27 @@ def _head_pose_in_scan(prepared: PreparedMarkers, sources: np.ndarray, targets: 
     S = np.tile(np.eye(4), (prepared.head_rotations.shape[0], 1, 1))
     S[:, :3, :3], S[:, :3, 3] = prepared.head_rotations, prepared.head_translations
     return world[None] @ np.linalg.inv(S) @ np.linalg.inv(A)[None]
+
+
+def _save_correspondence(path: Any, prepared: PreparedMarkers, rest_markers: np.ndarray, centres: np.ndarray) -> None:
+    """The correspondence map and the head motion in the mocap frame, for stages that need the capture's frame.
+
+    ``correspondence.npz`` (mm): ``mocap_points`` (K, 3), the rest markers in the (stabilised) mocap frame;
+    ``face_points`` (K, 3), where the warp puts them on the face (the map ``c`` of Bickel et al. 4.1 is the
+    triharmonic warp from the first to the second, its inverse the warp back); ``labels``; and, for a stabilised
+    take, ``mocap_from_stabilized`` (T, 4, 4), the rigid motion carrying frame t's stabilised markers back to where
+    the capture saw them. A face point ``x`` at frame t is then at ``M_t c^-1(x)`` in the mocap frame, where the
+    wrinkle cameras are calibrated.
+    """
+    arrays: dict[str, np.ndarray] = {
+        "mocap_points": np.asarray(rest_markers, np.float64), "face_points": np.asarray(centres, np.float64),
+        "labels": np.asarray(list(prepared.labels), dtype=str), "units": np.asarray("mm"),
+    }
+    if prepared.head_rotations is not None:
+        stabilize = np.tile(np.eye(4), (prepared.head_rotations.shape[0], 1, 1))
+        stabilize[:, :3, :3], stabilize[:, :3, 3] = prepared.head_rotations, prepared.head_translations
+        arrays["mocap_from_stabilized"] = np.linalg.inv(stabilize)
+    np.savez(path, **arrays)
 
 
 def _rest_markers(P: np.ndarray, rest_frame: int, sigma_frames: float) -> np.ndarray:

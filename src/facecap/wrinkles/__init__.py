@@ -15,6 +15,15 @@
   eq. 6 on any sampled profile.
 - :func:`fit_cross_sections` (``fit_cross_sections.py``): depth and width along a
   valley spline from one image, the ratio fit of eq. 7 by batched Gauss-Newton.
+- :class:`DiscreteShell`, :func:`minimize_shell` (``discrete_shell.py``): the nonlinear
+  discrete shell of eq. 8 and its damped Gauss-Newton minimiser.
+- :class:`SurfaceWrinkle`, :func:`wrinkles_on_surface`, :func:`merge_camera_wrinkles`
+  (``surface_wrinkles.py``): valley splines cast onto the animated face, the cameras merged (5.3).
+- :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`
+  (``synthesize_wrinkles.py``): valleys imposed and bulges by the shell, region by region (5.3).
+- :func:`capture_wrinkles`, :class:`WrinkleCapture`, :class:`WrinkleFrameStage`,
+  :func:`large_scale_in_mocap` (``capture_wrinkles.py``): the whole layer over a take, on the
+  frame runner (``facecap wrinkles``).
 - :func:`remove_wrinkles`, :func:`remove_wrinkles_arrays`, :class:`WrinkleRemoval`
   (``remove_wrinkles.py``): the wrinkles a neutral scan already has, removed by
   multi-scale smoothing with its fine details kept (section 5.4).
@@ -50,6 +59,10 @@ from .remove_wrinkles import (
     remove_wrinkles,
     remove_wrinkles_arrays,
 )
+from .discrete_shell import DiscreteShell, ShellMinimum, minimize_shell
+from .surface_wrinkles import SurfaceWrinkle, merge_camera_wrinkles, wrinkles_on_surface
+from .synthesize_wrinkles import WrinkleSynthesis, smoothed_normals, synthesize_wrinkles
+from .capture_wrinkles import WrinkleCapture, WrinkleFrameStage, capture_wrinkles, large_scale_in_mocap
 
 __all__ = [
     "PaintClassifier",
@@ -76,6 +89,19 @@ __all__ = [
     "CrossSections",
     "CrossSectionSamples",
     "ProfileFit",
+    "DiscreteShell",
+    "ShellMinimum",
+    "minimize_shell",
+    "SurfaceWrinkle",
+    "wrinkles_on_surface",
+    "merge_camera_wrinkles",
+    "synthesize_wrinkles",
+    "WrinkleSynthesis",
+    "smoothed_normals",
+    "capture_wrinkles",
+    "WrinkleCapture",
+    "WrinkleFrameStage",
+    "large_scale_in_mocap",
     "remove_wrinkles",
     "remove_wrinkles_arrays",
     "WrinkleRemoval",

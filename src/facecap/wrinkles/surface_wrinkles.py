@@ -17,7 +17,7 @@ import numpy as np
 
 from ..typing import FloatArray
 
-__all__ = ["SurfaceWrinkle", "wrinkles_on_surface", "merge_camera_wrinkles", "SNAP_MM"]
+__all__ = ["SurfaceWrinkle", "wrinkles_on_surface", "anchor_curves", "merge_camera_wrinkles", "SNAP_MM"]
 
 SNAP_MM = 2.5
 """Two cameras' curves of one paint closer than this (mean, over their overlap) are one wrinkle."""
@@ -68,7 +68,8 @@ def _median3(x: FloatArray) -> FloatArray:
 
 def wrinkles_on_surface(curves_px: Sequence[Any], cross_sections: Any, camera: Any, caster: Any,
                         face_vertices: Any, faces: Any, *, identities: Sequence[str] | None = None,
-                        colors: Sequence[int] | None = None, min_points: int = 4) -> list[SurfaceWrinkle]:
+                        colors: Sequence[int] | None = None, anchors: Sequence[Any] | None = None,
+                        min_points: int = 4) -> list[SurfaceWrinkle]:
     """One camera's valley curves and cross-sections at one frame, as lines on the face.
 
     Parameters
@@ -88,6 +89,12 @@ def wrinkles_on_surface(curves_px: Sequence[Any], cross_sections: Any, camera: A
         Per curve (default ``'<camera>:<i>'``).
     colors : sequence of int, optional
         Paint index per curve (default 0).
+    anchors : sequence of (triangles (k,), barycentric (k, 3)[, rest depth (k,)]) or None, optional
+        Per curve, where its valley line lies on the mesh (e.g. the painted stripe cast at the first
+        frame, :func:`anchor_curves`): the line then rides with the mesh's skin and this frame's curve
+        only places its cross-sections along it. A third array is the depth the rest frame's own
+        shading already showed along the line (the scan holds that crease): it is subtracted. None (per
+        curve or for all): cast this frame's curve onto the mesh (the paper's projection).
     min_points : int, default 4
         A curve with fewer surface hits is left out (it ran off the face).
 
@@ -98,37 +105,62 @@ def wrinkles_on_surface(curves_px: Sequence[Any], cross_sections: Any, camera: A
     """
     V = np.asarray(face_vertices, dtype=np.float64)
     F = np.asarray(faces, dtype=np.int64)
+    M = np.asarray(caster.V, dtype=np.float64)  # the same mesh in the mocap frame
     fit, samples = cross_sections.fit, cross_sections.samples
     out = []
     for i, curve in enumerate(curves_px):
         curve = np.asarray(curve, dtype=np.float64)
-        hits = caster.cast_pixels(camera, curve)
-        ok = hits.hit
-        if ok.sum() < min_points:
-            continue
-        tri, bary = hits.triangle[ok], hits.barycentric[ok]
+        anchor = None if anchors is None else anchors[i]
+        if anchor is None:
+            hits = caster.cast_pixels(camera, curve)
+            ok = hits.hit
+            if ok.sum() < min_points:
+                continue
+            tri, bary = hits.triangle[ok], hits.barycentric[ok]
+        else:
+            tri, bary = np.asarray(anchor[0]), np.asarray(anchor[1])
         points = np.einsum("kj,kjc->kc", bary, V[F[tri]])
-        view = hits.points[ok] - camera.centre
+        seen_at = np.einsum("kj,kjc->kc", bary, M[F[tri]])
+        n_tri = np.cross(M[F[tri, 1]] - M[F[tri, 0]], M[F[tri, 2]] - M[F[tri, 0]])
+        n_tri /= np.maximum(np.linalg.norm(n_tri, axis=1, keepdims=True), 1e-300)
+        view = seen_at - camera.centre
         view /= np.linalg.norm(view, axis=1, keepdims=True)
-        quality = np.einsum("kc,kc->k", view, hits.normals[ok]) ** 2
+        quality = np.einsum("kc,kc->k", view, n_tri) ** 2
         arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        pixels = camera.project(seen_at).pixels
         mine = np.flatnonzero(samples.curve == i)
         width = np.full(len(points), 1.0)
         depth = np.zeros(len(points))
         finite = mine[np.isfinite(fit.width[mine]) & np.isfinite(fit.depth[mine])]
         if finite.size:
-            pixel_of_hit = curve[ok]
-            nearest = np.argmin(np.linalg.norm(pixel_of_hit[None] - samples.centres_px[finite][:, None], axis=2),
-                                axis=1)
+            # each cross-section at the line's point it sees nearest in the image
+            nearest = np.argmin(np.linalg.norm(pixels[None] - samples.centres_px[finite][:, None], axis=2), axis=1)
             order = np.argsort(arc[nearest], kind="stable")
             at = arc[nearest][order]
             d = np.where(fit.has_wrinkle[finite], fit.depth[finite], 0.0)[order]
             w = fit.width[finite][order]
             depth = np.interp(arc, at, _median3(d))
             width = np.interp(arc, at, _median3(w))
+        if anchor is not None and len(anchor) > 2:
+            depth = np.clip(depth - np.asarray(anchor[2]), 0.0, None)
         name = identities[i] if identities is not None else f"{camera.name}:{i}"
         color = int(colors[i]) if colors is not None else 0
         out.append(SurfaceWrinkle(name, color, points, width, depth, quality))
+    return out
+
+
+def anchor_curves(curves_px: Sequence[Any], camera: Any, caster: Any, *, min_points: int = 4) -> list[Any]:
+    """Where each image curve lies on the mesh: (triangles (k,), barycentric (k, 3)), or None if it misses.
+
+    Cast once, at a frame where the large scale is accurate (the first, neutral one, where the paint was
+    masked), these are the valley lines as points of the skin: :func:`wrinkles_on_surface` carries them with
+    the mesh to every later frame.
+    """
+    out: list[Any] = []
+    for curve in curves_px:
+        hits = caster.cast_pixels(camera, np.asarray(curve, dtype=np.float64))
+        ok = hits.hit
+        out.append((hits.triangle[ok], hits.barycentric[ok]) if ok.sum() >= min_points else None)
     return out
 
 

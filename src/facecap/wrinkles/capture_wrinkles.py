@@ -1,0 +1,421 @@
+"""The wrinkle layer over a whole take: ``facecap wrinkles`` (Bickel et al. 2007, section 5).
+
+From a large-scale result (``facecap animate``), calibrated footage of the
+painted wrinkles and one paint mask per camera:
+
+1. each camera's footage is tracked (:func:`~facecap.wrinkles.track_wrinkles`,
+   5.1), in order: a wrinkle keeps its identity from frame to frame;
+2. every video frame is then independent, and runs as a chunk task on the
+   frame runner (:func:`~facecap.runner.run_frames`: Dask, resumable): the
+   large-scale frame is carried into the mocap frame by the inverse
+   correspondence map, the cross-sections of 5.2 are fitted along each
+   camera's splines, the splines are cast onto the mesh and merged across
+   cameras (:mod:`~facecap.wrinkles.surface_wrinkles`), and the wrinkles are
+   synthesised (:func:`~facecap.wrinkles.synthesize_wrinkles`, 5.3);
+3. the wrinkle displacement is interpolated linearly from the video frames to
+   the mocap rate and added to every large-scale frame, and the result is
+   written as ``animate`` writes it, plus ``wrinkles.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from ..errors import InputError
+from ..typing import FloatArray
+
+__all__ = ["WrinkleFrameStage", "WrinkleCapture", "capture_wrinkles", "large_scale_in_mocap", "first_frame_anchors"]
+
+CURVE_SAMPLES = 48
+"""Points per merged valley line in the stage's fixed-size output (and in ``wrinkles.json``)."""
+
+
+def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.ndarray], frame: int) -> FloatArray:
+    """A frame of the face carried into the mocap frame: ``M_t c^-1(x)`` (5.3's inverse correspondence map).
+
+    Parameters
+    ----------
+    face_vertices : (n, 3) float array, mm
+        The frame of the large-scale result (the face's frame).
+    correspondence : mapping
+        ``correspondence.npz`` of the result (``mocap_points``, ``face_points``, optional
+        ``mocap_from_stabilized``).
+    frame : int
+        The mocap frame (selects the head motion of a stabilised take).
+
+    Returns
+    -------
+    (n, 3) float64 array, mm
+        ``c^-1`` is the triharmonic warp from the face points back to the rest markers: it interpolates the
+        markers exactly and reproduces any affine motion, as the forward map does.
+    """
+    from ..deform.triharmonic_warp import TriharmonicWarp
+
+    X = np.asarray(face_vertices, dtype=np.float64)
+    back = TriharmonicWarp(np.asarray(correspondence["face_points"], np.float64),
+                           np.asarray(correspondence["mocap_points"], np.float64))
+    Y = back(X)
+    if "mocap_from_stabilized" in correspondence:
+        M = np.asarray(correspondence["mocap_from_stabilized"], np.float64)[frame]
+        Y = Y @ M[:3, :3].T + M[:3, 3]
+    return Y
+
+
+def _resample(points: FloatArray, values: Sequence[FloatArray], k: int) -> tuple[FloatArray, list[FloatArray]]:
+    """A polyline and values along it at ``k`` points uniform in arc length."""
+    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    u = np.linspace(0.0, s[-1], k)
+    P = np.stack([np.interp(u, s, points[:, c]) for c in range(3)], axis=1)
+    return P, [np.interp(u, s, v) for v in values]
+
+
+class WrinkleFrameStage:
+    """The per-video-frame work of the wrinkle layer, as a frame-runner stage (picklable, deterministic).
+
+    Parameters
+    ----------
+    result_dir : str
+        The large-scale result.
+    cameras : sequence of Camera
+        In footage order.
+    footage : sequence of str
+        One footage path per camera.
+    tracks : sequence (per camera) of sequences (per video frame) of lists of (identity, color, (m, 2) curve px)
+        The tracker's valley curves.
+    mocap_frames : (V,) float array
+        The mocap frame of each video frame.
+    n_slots : int
+        Rows of the fixed-size per-frame wrinkle arrays (at least the tracked wrinkles of all cameras).
+    options : mapping
+        Passed to :func:`~facecap.wrinkles.synthesize_wrinkles` (``depth_scale``, the shell's constants, ...).
+    anchors : mapping of str to (triangles, barycentric), optional
+        Valley lines fixed to the skin by identity (``'<camera>:<id>'``, :func:`~facecap.wrinkles.anchor_curves`);
+        a wrinkle without one is cast onto each frame anew.
+    """
+
+    def __init__(self, result_dir: str, cameras: Sequence[Any], footage: Sequence[str], tracks: Sequence[Any],
+                 mocap_frames: Any, n_slots: int, options: Mapping[str, Any] | None = None,
+                 anchors: Mapping[str, Any] | None = None) -> None:
+        self.result_dir = str(result_dir)
+        self.cameras = list(cameras)
+        self.footage = [str(p) for p in footage]
+        self.tracks = tracks
+        self.mocap_frames = np.asarray(mocap_frames, dtype=np.float64)
+        self.n_slots = int(n_slots)
+        self.options = dict(options or {})
+        self.anchors = dict(anchors or {})
+
+    def parameters(self) -> dict[str, Any]:
+        """What the frames depend on (the runner refuses to resume a run with other values)."""
+        return {"result_dir": self.result_dir, "cameras": [c.name for c in self.cameras], "footage": self.footage,
+                "options": {k: (v if not isinstance(v, Mapping) else dict(v)) for k, v in self.options.items()},
+                "n_slots": self.n_slots, "mocap_frames": self.mocap_frames.tolist(),
+                "anchors": {k: [np.round(np.asarray(a, dtype=np.float64), 8).tolist() for a in v]
+                            for k, v in sorted(self.anchors.items())},
+                "tracks": [[[(i, c, np.round(np.asarray(p), 4).tolist()) for i, c, p in frame] for frame in cam]
+                           for cam in self.tracks]}
+
+    def large_scale(self, video_frame: int) -> FloatArray:
+        """The large-scale face (mm) at a video frame's mocap time (linear between mocap frames)."""
+        from ..io.read_result import read_result
+
+        result = read_result(self.result_dir)
+        position = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
+        lo = int(np.floor(position))
+        hi = min(lo + 1, result.n_frames - 1)
+        block = result.frames(lo, hi + 1).astype(np.float64) * _mm_per(result.units)
+        weight = position - lo
+        return block[0] if hi == lo or weight == 0 else (1 - weight) * block[0] + weight * block[-1]
+
+    def frame(self, video_frame: int) -> tuple[dict[str, np.ndarray], list[Any]]:
+        """One video frame: the wrinkle displacement and the merged valley lines."""
+        from ..cameras import RayCaster, open_footage
+        from ..io.read_result import read_result
+        from .fit_cross_sections import fit_cross_sections
+        from .surface_wrinkles import merge_camera_wrinkles, wrinkles_on_surface
+        from .synthesize_wrinkles import synthesize_wrinkles
+
+        result = read_result(self.result_dir)
+        faces = result.mesh.faces
+        with np.load(Path(self.result_dir) / "correspondence.npz") as data:
+            correspondence = {k: data[k] for k in data.files}
+        A = self.large_scale(video_frame)
+        mocap_frame = int(round(float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))))
+        caster = RayCaster(large_scale_in_mocap(A, correspondence, mocap_frame), faces)
+        views, residuals = [], {}
+        for camera, path, track in zip(self.cameras, self.footage, self.tracks):
+            curves = track[video_frame]
+            if not curves:
+                views.append([])
+                continue
+            with open_footage(path) as footage:
+                image = footage.frame(video_frame)
+            polylines = [np.asarray(p, dtype=np.float64) for _, _, p in curves]
+            sections = fit_cross_sections(image, polylines, camera, caster)
+            for k, (identity, _, _) in enumerate(curves):
+                mine = sections.samples.curve == k
+                residuals[f"{camera.name}:{identity}"] = float(np.nanmean(sections.fit.rms[mine])) if mine.any() \
+                    else float("nan")
+            names = [f"{camera.name}:{i}" for i, _, _ in curves]
+            views.append(wrinkles_on_surface(polylines, sections, camera, caster, A, faces, identities=names,
+                                             colors=[c for _, c, _ in curves],
+                                             anchors=[self.anchors.get(name) for name in names]))
+        merged = merge_camera_wrinkles(views)
+        synthesis = synthesize_wrinkles(A, faces, merged, **self.options)
+        slots = np.full((self.n_slots, CURVE_SAMPLES, 5), np.nan, dtype=np.float32)
+        sources = np.full((self.n_slots, len(self.cameras)), -1, dtype=np.int32)
+        colors = np.full(self.n_slots, -1, dtype=np.int32)
+        residual = np.full(self.n_slots, np.nan, dtype=np.float32)
+        names = [c.name for c in self.cameras]
+        for row, wrinkle in enumerate(merged[: self.n_slots]):
+            P, (w, d) = _resample(wrinkle.points, [wrinkle.width, wrinkle.depth], CURVE_SAMPLES)
+            slots[row] = np.column_stack([P, w, d])
+            colors[row] = wrinkle.color
+            parts = wrinkle.wrinkle.split("+")
+            for part in parts:
+                cam, identity = part.rsplit(":", 1)
+                sources[row, names.index(cam)] = int(identity)
+            residual[row] = np.nanmean([residuals.get(p, np.nan) for p in parts])
+        arrays = {"displacement": (synthesis.vertices - A).astype(np.float32), "curves": slots,
+                  "sources": sources, "colors": colors, "residual": residual,
+                  "regions": np.int32(synthesis.n_regions)}
+        return arrays, merged
+
+    def __call__(self, start: int, stop: int, state: Any) -> tuple[dict[str, np.ndarray], None]:
+        frames = [self.frame(j)[0] for j in range(start, stop)]
+        return {k: np.stack([np.asarray(f[k]) for f in frames]) for k in frames[0]}, None
+
+
+def first_frame_anchors(stage: WrinkleFrameStage) -> dict[str, Any]:
+    """Each wrinkle of the first video frame cast onto the large scale there, by identity.
+
+    Returns ``{'<camera>:<id>': (triangles, barycentric, rest_depth)}``: the line on the skin, and the depth the
+    first frame's cross-sections already find along it (subtracted from every frame's: the first frame is the
+    scan's expression, so a crease it shows is in the scan).
+    """
+    from ..cameras import RayCaster, open_footage
+    from ..io.read_result import read_result
+    from .fit_cross_sections import fit_cross_sections
+    from .surface_wrinkles import anchor_curves, wrinkles_on_surface
+
+    result = read_result(stage.result_dir)
+    with np.load(Path(stage.result_dir) / "correspondence.npz") as data:
+        correspondence = {k: data[k] for k in data.files}
+    A = stage.large_scale(0)
+    frame = int(round(float(np.clip(stage.mocap_frames[0], 0, result.n_frames - 1))))
+    caster = RayCaster(large_scale_in_mocap(A, correspondence, frame), result.mesh.faces)
+    anchors: dict[str, Any] = {}
+    for camera, path, track in zip(stage.cameras, stage.footage, stage.tracks):
+        curves = track[0]
+        if not curves:
+            continue
+        polylines = [np.asarray(p, dtype=np.float64) for _, _, p in curves]
+        found = anchor_curves(polylines, camera, caster)
+        with open_footage(path) as footage:
+            image = footage.frame(0)
+        sections = fit_cross_sections(image, polylines, camera, caster)
+        names = [f"{camera.name}:{identity}" for identity, _, _ in curves]
+        # the rest frame's own creases, along each line: the scan already holds them
+        at_rest = wrinkles_on_surface(polylines, sections, camera, caster, A, result.mesh.faces, identities=names,
+                                      anchors=found)
+        rest_depth = {w.wrinkle: w.depth for w in at_rest}
+        for name, hit in zip(names, found):
+            if hit is not None:
+                anchors[name] = (hit[0], hit[1], rest_depth.get(name, np.zeros(len(hit[0]))))
+    return anchors
+
+
+def _mm_per(unit: str) -> float:
+    from ..units import mm_per_unit
+
+    return float(mm_per_unit(unit))
+
+
+class WrinkleCapture(NamedTuple):
+    """What :func:`capture_wrinkles` wrote.
+
+    Attributes
+    ----------
+    out_dir : Path
+        The result folder (``vertices.npy`` with the wrinkles, ``wrinkles.json``, exports).
+    n_video_frames : int
+    timings : dict of str to float
+        Seconds per step.
+    """
+
+    out_dir: Path
+    n_video_frames: int
+    timings: dict[str, float]
+
+
+def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any], footage: Sequence[Any],
+                     masks: Sequence[Any], out_dir: str | os.PathLike[str], *, video_rate_hz: float | None = None,
+                     first_mocap_frame: float = 0.0, depth_scale: float | Mapping[str, float] = 1.0,
+                     scheduler: str | None = "synchronous", n_workers: int = 2, work_dir: Any = None,
+                     exports: Sequence[str] = (), chunk_frames: int = 4, anchor: bool = True,
+                     progress: bool = False, options: Mapping[str, Any] | None = None) -> WrinkleCapture:
+    """Track, measure and synthesise the painted wrinkles of a take onto its large-scale result.
+
+    Parameters
+    ----------
+    result_dir : str or path-like
+        A ``facecap animate`` result (it must hold ``correspondence.npz``).
+    cameras : sequence of facecap.cameras.Camera
+        Calibrated in the mocap frame, one per footage.
+    footage : sequence of str or path-like
+        Image folders or video files, in ``cameras`` order.
+    masks : sequence of (H, W) arrays or paths
+        Each camera's paint mask of the first video frame (see :func:`~facecap.wrinkles.track_wrinkles`).
+    out_dir : str or path-like
+        The new result folder.
+    video_rate_hz : float, optional
+        The footage's rate (required).
+    first_mocap_frame : float, default 0
+        The mocap frame of video frame 0.
+    depth_scale : float or mapping of str to float, default 1
+        Scale every wrinkle's depth, or chosen ones by identity ('<camera>:<id>', as in ``wrinkles.json``).
+    scheduler : str or None, default 'synchronous'
+        The frame runner's (:func:`~facecap.runner.run_frames`): ``'synchronous'`` in this process, None for a
+        local cluster of ``n_workers`` processes, or a scheduler address.
+    n_workers : int, default 2
+    work_dir : path-like, optional
+        The runner's resumable work folder (default: a temporary one, removed at the end).
+    exports : sequence of str, default ()
+        As for ``facecap animate``.
+    chunk_frames : int, default 4
+        Video frames per runner task.
+    anchor : bool, default True
+        Fix each valley line to the skin where its paint lies in the first video frame (cast onto the large
+        scale there) and carry it with the mesh, the cross-sections of each frame placed along it; False
+        casts every frame's spline onto that frame's mesh, as the paper does. See ``docs/wrinkles.md``
+        (Synthesis) for why anchoring is the default.
+    progress : bool, default False
+    options : mapping, optional
+        More options of :func:`~facecap.wrinkles.synthesize_wrinkles`.
+
+    Returns
+    -------
+    WrinkleCapture
+
+    Raises
+    ------
+    InputError
+        A result without its correspondence map, a camera count that does not match the footage or masks,
+        footage of another size than its calibration, footage that does not cover the take, a mask without a
+        paint, a camera that sees no wrinkle at all.
+    """
+    from ..cameras import open_footage, read_image, synchronize
+    from ..io.read_result import read_result
+    from ..io.write_performance import PerformanceWriter
+    from ..runner import run_frames
+    from .track_wrinkles import track_wrinkles
+
+    timings: dict[str, float] = {}
+    start_all = time.perf_counter()
+    result_dir = Path(result_dir)
+    result = read_result(result_dir)
+    if not (result_dir / "correspondence.npz").is_file():
+        raise InputError("the result has no correspondence.npz (the map into the mocap frame, where the cameras "
+                         "are calibrated): make it with facecap animate", path=str(result_dir))
+    cameras, footage, masks = list(cameras), [str(f) for f in footage], list(masks)
+    if not cameras or len(cameras) != len(footage) or len(masks) != len(footage):
+        raise InputError(f"expected one camera and one mask per footage: {len(cameras)} cameras, "
+                         f"{len(footage)} footage, {len(masks)} masks")
+    if video_rate_hz is None:
+        raise InputError("video_rate_hz: the footage's rate is needed (the camera file's footage.rate_hz)")
+    t = time.perf_counter()
+    tracks, counts = [], []
+    for camera, path, mask in zip(cameras, footage, masks):
+        mask_image = read_image(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask)
+        with open_footage(path) as clip:
+            clip.check_camera(camera)
+            counts.append(len(clip))
+            tracked = track_wrinkles(clip, mask_image, camera=camera.name, progress=progress)
+        tracks.append([[(w.wrinkle, w.color, w.curve()) for w in frame] for frame in tracked])
+    timings["tracking_s"] = time.perf_counter() - t
+    n_video = min(counts)
+    sync = synchronize(result.rate, result.n_frames, video_rate_hz, n_video, first_mocap_frame=first_mocap_frame,
+                       footage_name=" and ".join(footage))
+    if not any(any(frame) for track in tracks for frame in track):
+        raise InputError("no camera sees a painted wrinkle in any frame (check the masks and the footage)")
+    n_slots = sum(max((len(frame) for frame in track), default=0) for track in tracks)
+    opts = dict(options or {})
+    opts["depth_scale"] = dict(depth_scale) if isinstance(depth_scale, Mapping) else float(depth_scale)
+    stage = WrinkleFrameStage(str(result_dir.resolve()), cameras, footage, [track[:n_video] for track in tracks],
+                              sync.mocap_frame(np.arange(n_video)), max(n_slots, 1), opts)
+    if anchor:
+        stage.anchors = first_frame_anchors(stage)
+    t = time.perf_counter()
+    own_work = work_dir is None
+    work = Path(tempfile.mkdtemp(prefix="facecap-wrinkles-")) if own_work else Path(work_dir)
+    try:
+        run = run_frames(stage, n_video, work, chunk_frames=chunk_frames, scheduler=scheduler, n_workers=n_workers,
+                         progress=progress)
+        timings["cross_sections_and_synthesis_s"] = time.perf_counter() - t
+        displacement = run.load("displacement")
+        t = time.perf_counter()
+        bracket = sync.bracket(np.arange(result.n_frames))
+        mm = _mm_per(result.units)
+        head_pose = result.head_motion.copy() if result.head_motion is not None else None
+        if head_pose is not None:
+            head_pose[:, :3, 3] *= mm
+        with PerformanceWriter(out_dir, mesh=result.mesh, rate=result.rate, n_frames=result.n_frames,
+                               exports=exports) as writer:
+            def compute(lo: int, hi: int, out: np.ndarray) -> None:
+                out[:] = result.frames(lo, hi) * np.float32(mm)
+                b, a, w = bracket.before[lo:hi], bracket.after[lo:hi], bracket.weight[lo:hi].astype(np.float32)
+                out += (1 - w)[:, None, None] * displacement[b] + w[:, None, None] * displacement[a]
+
+            writer.stream(compute, batch_frames=16, head_pose=head_pose, progress=progress, desc="wrinkles")
+            for name in ("head_motion.npy", "markers.npy", "correspondence.npz"):
+                if (result_dir / name).is_file():
+                    shutil.copyfile(result_dir / name, writer.path(name))
+            writer.path("wrinkles.json").write_text(json.dumps(
+                _wrinkles_document(run, stage, sync), indent=1))
+            timings["write_s"] = time.perf_counter() - t
+            timings["total_s"] = time.perf_counter() - start_all
+            final = writer.finish({"method": "bickel2007-medium-scale", "large_scale": str(result_dir),
+                                   "footage": footage, "cameras": [c.name for c in cameras],
+                                   "video_rate_hz": float(video_rate_hz), "first_mocap_frame": float(first_mocap_frame),
+                                   "depth_scale": opts["depth_scale"], "anchored": bool(anchor),
+                                   "markers": list(result.marker_labels) if result.markers is not None else [],
+                                   "timings": timings})
+    finally:
+        if own_work:
+            shutil.rmtree(work, ignore_errors=True)
+    return WrinkleCapture(Path(final), n_video, timings)
+
+
+def _wrinkles_document(run: Any, stage: WrinkleFrameStage, sync: Any) -> dict[str, Any]:
+    """``wrinkles.json``: per video frame and wrinkle, the splines, the line on the face, depth and width."""
+    curves, sources = run.load("curves"), run.load("sources")
+    colors, residual = run.load("colors"), run.load("residual")
+    names = [c.name for c in stage.cameras]
+    frames = []
+    for j in range(curves.shape[0]):
+        splines = {name: {str(i): np.round(np.asarray(p), 2).tolist() for i, _, p in stage.tracks[k][j]}
+                   for k, name in enumerate(names)}
+        wrinkles = []
+        for row in np.flatnonzero(colors[j] >= 0):
+            seen = {names[k]: int(s) for k, s in enumerate(sources[j, row]) if s >= 0}
+            c = curves[j, row]
+            wrinkles.append({
+                "wrinkle": "+".join(f"{cam}:{i}" for cam, i in seen.items()), "color": int(colors[j, row]),
+                "cameras": seen, "splines_px": {cam: splines[cam][str(i)] for cam, i in seen.items()},
+                "points_mm": np.round(c[:, :3], 4).tolist(), "width_mm": np.round(c[:, 3], 4).tolist(),
+                "depth_mm": np.round(c[:, 4], 4).tolist(),
+                "residual": None if not np.isfinite(residual[j, row]) else round(float(residual[j, row]), 5),
+            })
+        frames.append({"video_frame": j, "mocap_frame": float(sync.mocap_frame([j])[0]), "wrinkles": wrinkles})
+    return {"units": "mm", "frame": "face (the result's vertices)", "curve_samples": CURVE_SAMPLES,
+            "cameras": names, "frames": frames}
