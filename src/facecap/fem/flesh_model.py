@@ -105,6 +105,33 @@ def _not_positive_definite(A: FloatArray, relative_floor: float) -> BoolArray:  
     return bad
 
 
+@numba.njit(cache=True, nogil=True)
+def _stiffness_blocks(A: FloatArray, G: FloatArray, volumes: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """``K[e, 3a+i, 3b+k] = V_e sum_jl G[e,a,j] A[e, 3i+j, 3k+l] G[e,b,l]`` (about 3x numpy's matmul chain)."""
+    m = A.shape[0]
+    K = np.empty((m, 12, 12))
+    T = np.empty((3, 3, 3, 4))
+    for e in range(m):
+        for i in range(3):
+            for j in range(3):
+                for k in range(3):
+                    for b in range(4):
+                        v = 0.0
+                        for l in range(3):
+                            v += A[e, 3 * i + j, 3 * k + l] * G[e, b, l]
+                        T[i, j, k, b] = v
+        vol = volumes[e]
+        for a in range(4):
+            for i in range(3):
+                for b in range(4):
+                    for k in range(3):
+                        v = 0.0
+                        for j in range(3):
+                            v += G[e, a, j] * T[i, j, k, b]
+                        K[e, 3 * a + i, 3 * b + k] = vol * v
+    return K
+
+
 def _project_psd(A: FloatArray) -> int:
     """Clamp the negative eigenvalues of each symmetric 9 x 9 block of ``A`` to zero, in place.
 
@@ -309,7 +336,7 @@ class FleshModel:
     def deformation_gradients(self, x: FloatArray) -> FloatArray:
         """``F`` of every tetrahedron, (m, 3, 3), for node positions ``x`` (n, 3) mm."""
         x = self._positions(x)
-        return np.einsum("mai,maj->mij", x[self.tets], self.shape_gradients)
+        return x[self.tets].transpose(0, 2, 1) @ self.shape_gradients
 
     def inverted_tets(self, x: FloatArray) -> BoolArray:
         """Mask (m,) of the tetrahedra with ``det F <= 0`` at positions ``x``."""
@@ -350,7 +377,7 @@ class FleshModel:
         """
         x = self._positions(x)
         a = self._activations(activations)
-        F = np.einsum("mai,maj->mij", x[self.tets], self.shape_gradients)
+        F = x[self.tets].transpose(0, 2, 1) @ self.shape_gradients  # sum_a x_a g_a^T
         iso = mooney_rivlin_response(F, self.material, derivatives=derivatives)
         vol = self.rest_volumes
         energy_density = iso.energy_density.copy()
@@ -390,15 +417,7 @@ class FleshModel:
         if definiteness_fix:
             A = A.copy()
             _project_psd(A)
-        m = A.shape[0]
-        G = self.shape_gradients
-        # contract l with g_b: (m, [i j k], 3) @ (m, 3, 4) -> (m, i, j, k, b)
-        T1 = (A.reshape(m, 27, 3) @ G.transpose(0, 2, 1)).reshape(m, 3, 3, 12)
-        # contract j with g_a: (m, 4, 3) @ (m, j, [i k b]) -> (m, a, i, k, b)
-        T2 = (G @ T1.transpose(0, 2, 1, 3).reshape(m, 3, 36)).reshape(m, 4, 3, 3, 4)
-        K = T2.transpose(0, 1, 2, 4, 3).reshape(m, 12, 12)
-        K *= self.rest_volumes[:, None, None]
-        return K
+        return _stiffness_blocks(A, self.shape_gradients, self.rest_volumes)
 
     def energy(self, x: FloatArray, activations: FloatArray) -> float:
         """Total elastic energy ``E(x, a)``, uJ."""
@@ -424,7 +443,7 @@ class FleshModel:
         k, n = self.n_muscles, self.n_nodes
         if self._pair_tet.size == 0:
             return np.zeros((k, n, 3))
-        F = np.einsum("mai,maj->mij", x[self.tets[self._pair_tet]], self.shape_gradients[self._pair_tet])
+        F = x[self.tets[self._pair_tet]].transpose(0, 2, 1) @ self.shape_gradients[self._pair_tet]
         base, _ = self._fibre_weights(np.zeros(k))
         fib = fibre_response(F, self._pair_direction, np.zeros_like(base), base, self.fibre, derivatives=1)
         assert fib.stress is not None

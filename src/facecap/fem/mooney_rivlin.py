@@ -185,9 +185,9 @@ def mooney_rivlin_response(F: FloatArray, material: MooneyRivlin, *, derivatives
     F = np.asarray(F, dtype=np.float64)
     m = F.shape[0]
     c10, c01, kappa = material.mu10_kpa, material.mu01_kpa, material.bulk_modulus_kpa
-    C = np.einsum("mki,mkj->mij", F, F)
+    C = F.transpose(0, 2, 1) @ F
     I1 = np.einsum("mii->m", C)
-    I2 = 0.5 * (I1 * I1 - np.einsum("mij,mji->m", C, C))
+    I2 = 0.5 * (I1 * I1 - (C * C).sum(axis=(1, 2)))  # tr C^2 = |C|_F^2, C symmetric
     J = np.linalg.det(F)
     g1, dg1, d2g1 = _volume_factor(J, -2.0 / 3.0, material.inversion_volume_ratio)
     g2, dg2, d2g2 = _volume_factor(J, -4.0 / 3.0, material.inversion_volume_ratio)
@@ -210,6 +210,6 @@ def mooney_rivlin_response(F: FloatArray, material: MooneyRivlin, *, derivatives
         return StressResponse(psi, P, None)
 
     # The 9 x 9 second derivative, element by element in compiled code: the same sum of
-    # outer products in numpy einsums took 1.3 s at 100k tetrahedra, this 0.05 s.
+    # outer products in numpy einsums took 1.3 s at 100k tetrahedra, this 0.2 s.
     A = _stress_derivatives(F, C, cof, dI1, dI2, I1, I2, J, g1, dg1, d2g1, g2, dg2, d2g2, s1, c10, c01, kappa)
     return StressResponse(psi, P, A)

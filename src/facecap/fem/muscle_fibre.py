@@ -170,8 +170,8 @@ def fibre_response(F: FloatArray, directions: FloatArray, passive_weight: FloatA
     F = np.asarray(F, dtype=np.float64)
     d = np.asarray(directions, dtype=np.float64)
     ofl, smax = fibre.optimal_stretch, fibre.max_stress_kpa
-    q = np.einsum("pij,pj->pi", F, d)
-    stretch = np.sqrt(np.einsum("pi,pi->p", q, q))
+    q = (F @ d[:, :, None])[:, :, 0]
+    stretch = np.sqrt((q * q).sum(axis=1))
     s = stretch / ofl
     fa, dfa, ia = active_force_length(s)
     fp, dfp, ip = passive_force_length(s, fibre)
@@ -189,6 +189,10 @@ def fibre_response(F: FloatArray, directions: FloatArray, passive_weight: FloatA
     nf = n.reshape(m, 9)
     nn = nf[:, :, None] * nf[:, None, :]
     dd = d[:, :, None] * d[:, None, :]
-    Idd = np.einsum("ik,pjl->pijkl", np.eye(3), dd).reshape(m, 9, 9)
-    A = d2psi[:, None, None] * nn + (dpsi / safe)[:, None, None] * (Idd - nn)
+    A = (d2psi - dpsi / safe)[:, None, None] * nn
+    # + psi' / lambda * (d_ik d_j d_l): the block diagonal of three copies of d d^T
+    blocks = A.reshape(m, 3, 3, 3, 3)
+    scaled = (dpsi / safe)[:, None, None] * dd
+    for i in range(3):
+        blocks[:, i, :, i, :] += scaled
     return StressResponse(psi, P, A)
