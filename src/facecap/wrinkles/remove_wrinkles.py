@@ -300,6 +300,8 @@ def remove_wrinkles_arrays(
         warnings.warn(f"{loose.size} vertices of the region lie on closed pieces wholly inside it; "
                       "nothing outside holds them, so they are left as they are", FacecapWarning, stacklevel=2)
         free[loose] = False
+        if not free.any():
+            return unchanged
     if not free.any():
         warnings.warn("remove_wrinkles: no vertex of the region can change (it is empty or all on the "
                       "mesh's open boundaries); the scan is returned unchanged", FacecapWarning, stacklevel=2)
