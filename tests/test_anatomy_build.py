@@ -23,7 +23,7 @@ from facecap.anatomy import (
 from facecap.errors import FileFormatError, InputError
 from facecap.synth import load_ict_sample
 
-TEST_TETS = 3000
+TEST_TETS = 2000
 
 
 @pytest.fixture(scope="module")

@@ -21,7 +21,7 @@ from facecap.anatomy.tetrahedralize_shell import ENVELOPE_MM
 from facecap.errors import InputError
 from facecap.synth import load_ict_sample
 
-TEST_TETS = 3000
+TEST_TETS = 2000
 
 
 @pytest.fixture(scope="module")
@@ -126,9 +126,10 @@ def test_tetrahedra_are_positive_and_fill_the_meshed_volume(shell, tets) -> None
     assert abs(vol.sum() - meshed.volume) <= meshed.area * ENVELOPE_MM
     # measured: within 0.3 % (the bound above allows 11 %)
     assert abs(vol.sum() - meshed.volume) < 0.01 * meshed.volume
-    # the decimation for a coarse mesh changes the enclosed volume by a few per cent at most
+    # the edge-collapse decimation for a coarse mesh shrinks convex parts a little (measured 4.5 %
+    # at this setting; none at the default, where the surface is meshed as it is)
     full = trimesh.Trimesh(shell.V, shell.F, process=False).volume
-    assert abs(meshed.volume - full) < 0.05 * full
+    assert 0.0 <= full - meshed.volume < 0.06 * full
     # every node is used and lies inside the envelope's reach of the surface
     assert np.unique(T).size == X.shape[0]
     lo, hi = shell.V.min(axis=0) - ENVELOPE_MM, shell.V.max(axis=0) + ENVELOPE_MM

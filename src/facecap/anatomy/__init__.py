@@ -28,6 +28,7 @@ from .anatomy_landmarks import (
     ANATOMY_LANDMARK_NAMES,
     AnatomyLandmarks,
     anatomy_landmarks,
+    face_frame,
     landmarks_from_ibug68,
     read_landmarks,
 )
@@ -64,6 +65,7 @@ __all__ = [
     "build_anatomy",
     "embed_points",
     "embedding_matrix",
+    "face_frame",
     "facial_muscles",
     "is_mandible",
     "jaw_joint",

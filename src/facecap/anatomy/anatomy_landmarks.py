@@ -26,6 +26,7 @@ __all__ = [
     "ANATOMY_LANDMARK_NAMES",
     "AnatomyLandmarks",
     "anatomy_landmarks",
+    "face_frame",
     "landmarks_from_ibug68",
     "read_landmarks",
 ]
@@ -289,6 +290,11 @@ def read_landmarks(path: str | os.PathLike[str], scan_mesh: Mesh) -> AnatomyLand
         raise FileFormatError(f"not a readable JSON file ({exc})", path=src) from None
     if not isinstance(data, dict):
         raise FileFormatError("expected a JSON object mapping landmark names to vertices or points", path=src)
+    return _from_mapping(data, scan_mesh, src)
+
+
+def _from_mapping(data: dict[str, Any], scan_mesh: Mesh, src: str) -> AnatomyLandmarks:
+    """Named landmarks from a parsed mapping (see :func:`read_landmarks`); ``src`` names it in errors."""
     V = scan_mesh.vertices
     if "ibug68" in data:
         entries = data["ibug68"]
@@ -305,13 +311,23 @@ def read_landmarks(path: str | os.PathLike[str], scan_mesh: Mesh) -> AnatomyLand
     pts = np.array([_entry_point(V, data[n], n, src) for n in ANATOMY_LANDMARK_NAMES])
     idx = _snap(V, pts, list(ANATOMY_LANDMARK_NAMES), source=src)
     frame_pts = {n: V[i] for n, i in zip(ANATOMY_LANDMARK_NAMES, idx)}
-    x = frame_pts["exocanthion_L"] + frame_pts["endocanthion_L"] - frame_pts["exocanthion_R"] - frame_pts["endocanthion_R"]
-    x /= np.linalg.norm(x)
-    up = frame_pts["nasion"] - frame_pts["menton"]
-    y = up - (up @ x) * x
-    y /= np.linalg.norm(y)
-    frame = np.stack([x, y, np.cross(x, y)])
+    frame = face_frame(frame_pts)
     return _finish(V, dict(zip(ANATOMY_LANDMARK_NAMES, idx.tolist())), frame, frame_pts["nasion"].copy())
+
+
+def face_frame(points: dict[str, Any]) -> FloatArray:
+    """The face frame from named landmarks: rows left, up, forward (unit, right-handed).
+
+    Left: from the right eye corners' midpoint to the left's; up: from the
+    menton toward the nasion, made orthogonal to left; forward = left x up.
+    """
+    p = {k: np.asarray(v, dtype=np.float64) for k, v in points.items()}
+    x = p["exocanthion_L"] + p["endocanthion_L"] - p["exocanthion_R"] - p["endocanthion_R"]
+    x = x / np.linalg.norm(x)
+    up = p["nasion"] - p["menton"]
+    y = up - (up @ x) * x
+    y = y / np.linalg.norm(y)
+    return np.stack([x, y, np.cross(x, y)])
 
 
 def _entry_point(V: FloatArray, entry: Any, name: str, src: str) -> FloatArray:
@@ -365,11 +381,5 @@ def anatomy_landmarks(scan_mesh: Mesh, landmarks: Any = None) -> AnatomyLandmark
 
         return landmarks_from_ibug68(scan_mesh, load_ict_sample().landmarks)
     if isinstance(landmarks, dict):
-        import tempfile
-
-        with tempfile.TemporaryDirectory() as tmp:
-            p = os.path.join(tmp, "landmarks.json")
-            with open(p, "w", encoding="utf-8") as handle:
-                json.dump(landmarks, handle)
-            return read_landmarks(p, scan_mesh)
+        return _from_mapping(landmarks, scan_mesh, "")
     return read_landmarks(landmarks, scan_mesh)

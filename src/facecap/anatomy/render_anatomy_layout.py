@@ -16,6 +16,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
 from ..io._atomic import atomic_path
+from .anatomy_landmarks import face_frame
 from .face_anatomy import FaceAnatomy
 
 __all__ = ["render_anatomy_layout"]
@@ -25,14 +26,7 @@ _SKIN = np.array([0.86, 0.82, 0.79])
 
 
 def _face_frame(anatomy: FaceAnatomy) -> np.ndarray:
-    """Rows left, up, forward from the eye corners and the nasion-menton line."""
-    p = {n: anatomy.landmark_points[i] for i, n in enumerate(anatomy.landmark_names)}
-    x = p["exocanthion_L"] + p["endocanthion_L"] - p["exocanthion_R"] - p["endocanthion_R"]
-    x /= np.linalg.norm(x)
-    up = p["nasion"] - p["menton"]
-    y = up - (up @ x) * x
-    y /= np.linalg.norm(y)
-    return np.stack([x, y, np.cross(x, y)])
+    return face_frame(dict(zip(anatomy.landmark_names, anatomy.landmark_points)))
 
 
 def _view(frame: np.ndarray, which: str) -> np.ndarray:

@@ -95,7 +95,8 @@ def _ftetwild() -> ModuleType:
     name = "pytetwild.PyfTetWildWrapper"
     loader = importlib.machinery.ExtensionFileLoader(name, found[0])
     module_spec = importlib.util.spec_from_file_location(name, found[0], loader=loader)
-    assert module_spec is not None  # spec_from_file_location with a loader always returns one
+    if module_spec is None:  # pragma: no cover - spec_from_file_location with a loader returns one
+        raise ImportError(f"cannot load fTetWild from {found[0]}")
     module = importlib.util.module_from_spec(module_spec)
     loader.exec_module(module)
     return module
@@ -182,10 +183,13 @@ def tetrahedralize_shell(V: FloatArray, F: IntArray, *, n_tets: int = 100_000, t
     The ideal edge length is that of a regular tetrahedron of volume
     ``volume * c / n_tets`` (``c`` = 1.25, measured on the ICT face: fTetWild adds
     tetrahedra near the surface). When the surface is much finer than that
-    edge it is first decimated (libigl edge collapse) to about two triangles
-    per ideal edge squared, which fTetWild would otherwise do itself, slowly;
+    edge it is first decimated (libigl's shortest-edge collapse) to about two
+    triangles per ideal edge squared, which fTetWild would otherwise do itself, slowly;
     the envelope of 0.6 mm bounds how far the tetrahedral boundary strays
-    from the given surface.
+    from the surface it meshed. The decimation shrinks convex parts a
+    little (4.5 % of the volume at 2,700 triangles on the ICT face);
+    QSlim keeps the volume (0.2 %) but its slivers make fTetWild
+    refine to twice the tetrahedra in 1.5 times the time, so it is not used.
     """
     if int(n_tets) < 100:
         raise InputError(f"n_tets: expected at least 100 tetrahedra, got {n_tets}")
