@@ -189,3 +189,23 @@ def test_a_scan_outside_the_ict_topology_needs_landmarks() -> None:
 
     with pytest.raises(InputError, match="not in the ICT-FaceKit topology"):
         anatomy_landmarks(Mesh(vertices=V, faces=F))
+
+
+def test_a_scan_too_small_or_inside_out_is_refused() -> None:
+    from facecap.anatomy import soft_tissue_shell
+    from facecap.errors import MeshError
+    from facecap.structures import Mesh
+
+    full = load_ict_sample().mesh
+    lm = anatomy_landmarks(full)
+    # only the nose of the face: the landmarks (as points) lie far from it
+    nose = np.flatnonzero(np.linalg.norm(full.vertices - lm.point("pronasale"), axis=1) < 20)
+    keep = np.isin(full.faces, nose).all(axis=1)
+    used, inverse = np.unique(full.faces[keep], return_inverse=True)
+    small = Mesh(vertices=full.vertices[used], faces=inverse.reshape(-1, 3))
+    with pytest.raises(InputError, match="further than 10 mm"):
+        anatomy_landmarks(small, {n: p.tolist() for n, p in zip(lm.names, lm.points)})
+    # the whole face with its triangles turned inside out: refused, not a bone outside the face
+    flipped = Mesh(vertices=full.vertices, faces=full.faces[:, ::-1])
+    with pytest.raises(MeshError, match="face into the head"):
+        soft_tissue_shell(flipped, lm)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import time
 from importlib import metadata
 from typing import Any
@@ -12,7 +13,7 @@ from tqdm.auto import tqdm
 
 from ..errors import InputError
 from ..structures import Mesh
-from .anatomy_landmarks import anatomy_landmarks
+from .anatomy_landmarks import AnatomyLandmarks, anatomy_landmarks
 from .face_anatomy import FaceAnatomy
 from .facial_muscles import facial_muscles
 from .jaw_joint import is_mandible, jaw_joint
@@ -135,7 +136,7 @@ def build_anatomy(scan_mesh: Mesh, landmarks: Any = None, n_tets: int = 100_000,
         "meshed_surface_volume_mm3": float(_closed_volume(mesh.surface_V, mesh.surface_F)),
         "shell_volume_mm3": float(_closed_volume(shell.V, shell.F)),
         "tissue_depths": TISSUE_DEPTH_SOURCE,
-        "landmarks": "ICT-FaceKit 68 landmarks" if landmarks is None else str(landmarks) if not isinstance(landmarks, dict) else "mapping",
+        "landmarks": _landmark_source(landmarks),
         "quality": quality._asdict(),
         "seconds": seconds,
         "facecap": _facecap_version(),
@@ -156,6 +157,17 @@ def build_anatomy(scan_mesh: Mesh, landmarks: Any = None, n_tets: int = 100_000,
         tissue_thickness_mm=depth,
         provenance=provenance,
     )
+
+
+def _landmark_source(landmarks: Any) -> str:
+    """A short description of where the landmarks came from, for the provenance."""
+    if landmarks is None:
+        return "ICT-FaceKit 68 landmarks (built in)"
+    if isinstance(landmarks, AnatomyLandmarks):
+        return "AnatomyLandmarks given by the caller"
+    if isinstance(landmarks, dict):
+        return "mapping given by the caller"
+    return f"file {os.fspath(landmarks)}"
 
 
 def _closed_volume(V: np.ndarray, F: np.ndarray) -> float:

@@ -212,7 +212,7 @@ def _nose_footprint(S: FloatArray, landmarks: AnatomyLandmarks, *, behind_alae: 
     return over & ((P[:, 2] < z_alae) if behind_alae else (P[:, 2] >= z_alae))
 
 
-def nose_zone(S: FloatArray, landmarks: AnatomyLandmarks) -> np.ndarray:
+def _nose_zone(S: FloatArray, landmarks: AnatomyLandmarks) -> np.ndarray:
     """Skin vertices of the cartilaginous nose: below the rhinion, above the subnasale, between the alae."""
     return _nose_footprint(S, landmarks, behind_alae=False)
 
@@ -224,7 +224,7 @@ def _without_nose(S: FloatArray, F: IntArray, landmarks: AnatomyLandmarks) -> Fl
     cotangent weights negative values, the graph Laplacian keeps the
     membrane inside the convex hull of the zone's rim.
     """
-    zone = nose_zone(S, landmarks)
+    zone = _nose_zone(S, landmarks)
     if not zone.any():
         return S
     n = S.shape[0]
@@ -293,8 +293,10 @@ def soft_tissue_shell(scan_mesh: Mesh, landmarks: AnatomyLandmarks) -> SoftTissu
     Raises
     ------
     MeshError
-        If the cropped face region is not a single manifold piece, or the
-        closed surface is not watertight or encloses no volume.
+        If the face region's triangles face into the head, or the closed
+        surface is not watertight or encloses no volume.
+    InputError
+        If fewer than 4 tabulated landmarks lie on the meshed face region.
 
     Notes
     -----
@@ -313,6 +315,11 @@ def soft_tissue_shell(scan_mesh: Mesh, landmarks: AnatomyLandmarks) -> SoftTissu
     """
     V = scan_mesh.vertices
     faces = _crop(scan_mesh, landmarks)
+    tri = V[scan_mesh.faces[faces]]
+    area_normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).sum(axis=0)
+    if area_normal @ landmarks.frame[2] <= 0:
+        raise MeshError("the scan's triangles face into the head (its normals point away from the viewer "
+                        "of the face); flip their orientation", path=scan_mesh.source_path)
     skin_vertices, inverse = np.unique(scan_mesh.faces[faces], return_inverse=True)
     Fs = inverse.reshape(-1, 3).astype(np.int64)
     S = V[skin_vertices]

@@ -103,7 +103,21 @@ def _ftetwild() -> ModuleType:
 
 
 def tet_volumes(X: FloatArray, T: IntArray) -> FloatArray:
-    """Signed volume of each tetrahedron, mm^3 (positive for the orientation used here)."""
+    """Signed volume of each tetrahedron.
+
+    Parameters
+    ----------
+    X : (N, 3) float64 array, mm
+        Nodes.
+    T : (M, 4) int64 array
+        Tetrahedra.
+
+    Returns
+    -------
+    (M,) float64 array, mm^3
+        ``det[x1 - x0, x2 - x0, x3 - x0] / 6``: positive for the orientation
+        used here.
+    """
     D = X[T[:, 1:]] - X[T[:, :1]]
     return np.linalg.det(D) / 6.0
 
