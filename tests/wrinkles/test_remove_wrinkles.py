@@ -143,3 +143,26 @@ def test_bad_region_mask_and_options_raise_input_errors_naming_them():
         remove_wrinkles_arrays(V, F, smoothing_steps=0)
     with pytest.raises(InputError, match="mesh: expected a facecap Mesh"):
         remove_wrinkles(V)
+
+
+def test_a_uv_seam_is_welded_for_the_solve():
+    # a valley across a 0.5 mm grid, and the same grid cut along a column (its vertices duplicated there)
+    k = 41
+    x, y = np.meshgrid(np.arange(k) * 0.5, np.arange(k) * 0.5)
+    q = (y.ravel() - 10.0) / 2.0
+    V = np.stack([x.ravel(), y.ravel(), -0.4 * (1 - q**2) * np.exp(-q**2)], 1)
+    a = (np.arange(k - 1)[:, None] * k + np.arange(k - 1)[None]).ravel()
+    F = np.concatenate([np.stack([a, a + 1, a + k + 1], 1), np.stack([a, a + k + 1, a + k], 1)])
+    region = (np.abs(q) < 3) & (np.abs(V[:, 0] - 10.0) < 7)
+    seam = np.flatnonzero(np.isclose(V[:, 0], 10.0))
+    copy = np.arange(V.shape[0])
+    copy[seam] = V.shape[0] + np.arange(seam.size)
+    right = np.all(V[F, 0] >= 10.0 - 1e-9, axis=1)
+    F_cut = np.where(right[:, None], copy[F], F)
+    V_cut = np.concatenate([V, V[seam]])
+    region_cut = np.concatenate([region, region[seam]])
+    whole = remove_wrinkles_arrays(V, F, region, backend="scipy")
+    cut = remove_wrinkles_arrays(V_cut, F_cut, region_cut, backend="scipy")
+    assert whole.changed[seam].any()  # the seam runs through the region
+    np.testing.assert_allclose(cut.vertices[: V.shape[0]], whole.vertices, atol=1e-9)
+    np.testing.assert_allclose(cut.vertices[V.shape[0]:], whole.vertices[seam], atol=1e-9)
