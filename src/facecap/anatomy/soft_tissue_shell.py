@@ -1,9 +1,12 @@
 """The closed soft-tissue volume of a face scan: skin outside, bone inside, walls along the cut.
 
-The bone surface is the skin offset inwards along smoothed normals by the
+The bone surface is the skin, with the cartilaginous nose replaced by a
+membrane across its base, offset inwards along smoothed normals by the
 soft-tissue thickness field (:mod:`.tissue_thickness`), then smoothed so that
-the nose, lips and eyelids (soft tissue) are not copied onto the bone, and
-corrected so that the thickness at each tabulated landmark is the table's.
+the lips and eyelids (soft tissue) are not copied onto the bone, and corrected
+so that the thickness at each tabulated landmark is the table's. The skin that
+curls back into the head (inner eyelids and lips) is left out of the meshed
+skin, so the bone cannot cross it.
 The face region of a scan is an open surface (eye and mouth openings, an outer
 rim), so the volume is closed by ruled side walls joining each skin boundary
 loop to the matching bone loop.
@@ -302,16 +305,19 @@ def soft_tissue_shell(scan_mesh: Mesh, landmarks: AnatomyLandmarks) -> SoftTissu
     -----
     1. Crop: the scan faces in front of the ears (8 mm behind the
        supraglenoid points), from 12 mm under the menton to 15 mm above the
-       mid-forehead point; the largest piece, without bow-tie boundary vertices.
-    2. Normals: vertex normals diffused over 10 mm and renormalised.
-    3. Thickness ``t``: harmonic interpolation of the landmark depths, at least 1 mm.
-    4. Bone ``B = smooth_6mm(S - t n)`` with the boundary rows held; then the
+       mid-forehead point, less the inward folds at the eyes and mouth
+       (:func:`_folds_inwards`); the largest piece, without bow-tie
+       boundary vertices.
+    2. Base: the skin with the nose zone (:func:`_nose_footprint`) replaced by
+       a harmonic membrane.
+    3. Normals ``n``: the base's vertex normals diffused over 10 mm and renormalised.
+    4. Thickness ``t``: harmonic interpolation of the landmark depths, at least 1 mm.
+    5. Bone ``B = smooth_6mm(base - t n)`` with the boundary rows held; then the
        landmark depths are corrected ``t_k += t_table - t_measured`` (measured
-       along ``-n`` from the skin to ``B``) and steps 3-4 repeated 6 times.
-       Where the bone ends up closer than 3 mm behind the nearest skin (the
-       nostril cavities and inner lips fold back over it) it is pushed
+       along ``-n`` from the skin to ``B``) and steps 4-5 repeated 6 times.
+       Where the bone ends up closer than 3 mm to any skin it is pushed
        deeper along ``-n``.
-    5. Closed surface: skin, bone reversed, walls on every boundary loop.
+    6. Closed surface: skin, bone reversed, walls on every boundary loop.
     """
     V = scan_mesh.vertices
     faces = _crop(scan_mesh, landmarks)
