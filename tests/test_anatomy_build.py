@@ -150,6 +150,8 @@ def test_layout_picture(anatomy, tmp_path: Path) -> None:
     saturation = rgb.max(axis=2) - rgb.min(axis=2)
     assert (saturation > 0.25).mean() > 0.02
     assert (rgb.min(axis=2) > 0.98).mean() > 0.2
+    with pytest.raises(InputError, match="size_px"):
+        render_anatomy_layout(anatomy, path, size_px=(10, 10))
 
 
 def test_bad_input_is_refused() -> None:

@@ -15,6 +15,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
+from ..errors import InputError
 from ..io._atomic import atomic_path
 from .anatomy_landmarks import face_frame
 from .face_anatomy import FaceAnatomy
@@ -90,8 +91,19 @@ def render_anatomy_layout(anatomy: FaceAnatomy, path: str | os.PathLike[str], *,
         Width and height in pixels, default (1800, 1000).
     title : str or None, optional
         Figure title; default names the muscle and tetrahedron counts.
+
+    Raises
+    ------
+    InputError
+        If ``size_px`` is not two sizes of at least 200 pixels, or the
+        folder of ``path`` does not exist.
     """
-    W, H = int(size_px[0]), int(size_px[1])
+    try:
+        W, H = (int(v) for v in size_px)
+    except (TypeError, ValueError):
+        raise InputError(f"size_px: expected (width, height) in pixels, got {size_px!r}") from None
+    if W < 200 or H < 200:
+        raise InputError(f"size_px: expected at least 200 x 200 pixels, got {W} x {H}")
     fig = Figure(figsize=(W / _DPI, H / _DPI), dpi=_DPI, facecolor="white")
     frame = _face_frame(anatomy)
     top = 0.93
