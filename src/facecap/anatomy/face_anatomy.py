@@ -70,6 +70,8 @@ class FaceAnatomy:
         are carried by affine extrapolation of the nearest tetrahedron).
     skin_meshed : (n,) bool array
         Scan vertices of the meshed region (the face in front of the ears).
+        The others (ears, scalp, neck) should move with the cranium: their
+        embedding extrapolates a distant tetrahedron (weights up to ~35).
     condyles : (2, 3) float64 array, mm
         Left and right temporomandibular joint centres.
     landmark_names : tuple of str
