@@ -70,8 +70,9 @@ class FaceAnatomy:
         are carried by affine extrapolation of the nearest tetrahedron).
     skin_meshed : (n,) bool array
         Scan vertices of the meshed region (the face in front of the ears).
-        The others (ears, scalp, neck) should move with the cranium: their
-        embedding extrapolates a distant tetrahedron (weights up to ~35).
+        Those far outside it (ears, scalp, neck: more than 10 mm from every
+        node) should move with the cranium: their embedding extrapolates a
+        distant tetrahedron (weights up to ~35), exact only at rest.
     condyles : (2, 3) float64 array, mm
         Left and right temporomandibular joint centres.
     landmark_names : tuple of str
