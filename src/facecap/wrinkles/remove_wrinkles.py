@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from typing import Any, NamedTuple
+from typing import Any, Literal, NamedTuple
 
 import igl
 import numpy as np
@@ -33,6 +33,8 @@ reference whose curvature the wrinkle-free patch keeps (None: the paper's plain 
 
 DEFAULT_SMOOTHING_STEPS = 3
 """Implicit Laplacian smoothing steps (Desbrun et al. 1999) that make up the detail smoothing."""
+
+DetailSmoothing = Literal["laplacian", "bilaplacian"]
 
 # Relative to the mean triangle area: anything smaller has no usable cotangents (as in the thin shell).
 _DEGENERATE_AREA = 1e-10
@@ -112,6 +114,30 @@ def _ring_distance(adjacency: sp.csr_matrix, seed: BoolArray, rings: int) -> Int
     return distance
 
 
+def _implicit_smoothing(X: FloatArray, L: sp.csr_matrix, mass: FloatArray, moving: BoolArray, length: float, *,
+                        order: int, steps: int, backend: Backend,
+                        bilaplacian: sp.csr_matrix | None = None) -> FloatArray:
+    """``steps`` implicit steps ``(M + length^(2 order) / (c steps) K) X_k+1 = M X_k``, ``X`` fixed off ``moving``.
+
+    ``K = L`` (``order=1``, ``c = 2``: the heat equation run for ``length^2 / 2``, a Gaussian of
+    standard deviation ``length``) or ``K = L M^-1 L`` (``order=2``, ``c = 1``: a wave of
+    wavenumber ``k`` kept by ``(1 + (length k)^4 / steps)^-steps``).
+    """
+    if order == 1:
+        K, tau = L, length**2 / (2.0 * steps)
+    else:
+        K = bilaplacian if bilaplacian is not None else (L @ sp.diags(1.0 / mass) @ L).tocsr()
+        tau = length**4 / steps
+    mi, fi = np.flatnonzero(moving), np.flatnonzero(~moving)
+    factor = SpdFactor((sp.diags(mass[mi]) + tau * K[mi][:, mi]).tocsr(), backend=backend)
+    from_fixed = tau * (K[mi][:, fi] @ X[fi])
+    out = X.copy()
+    for _ in range(steps):
+        out[mi] = factor.solve(mass[mi, None] * out[mi] - from_fixed)
+    factor.free()
+    return out
+
+
 def remove_wrinkles_arrays(
     V: Any,
     F: Any,
@@ -120,6 +146,7 @@ def remove_wrinkles_arrays(
     detail_scale_mm: float = DEFAULT_DETAIL_SCALE_MM,
     large_scale_mm: float | None = DEFAULT_LARGE_SCALE_MM,
     smoothing_steps: int = DEFAULT_SMOOTHING_STEPS,
+    detail_smoothing: DetailSmoothing = "laplacian",
     backend: Backend = "auto",
 ) -> WrinkleRemoval:
     """Remove the medium-scale wrinkles of a scan in a region, keeping its fine details.
@@ -167,8 +194,16 @@ def remove_wrinkles_arrays(
         RMS on a generated forehead region 40 mm tall, against 0.02 mm with
         the reference). See Notes.
     smoothing_steps : int, default :data:`DEFAULT_SMOOTHING_STEPS` (3)
-        Implicit steps the smoothing is split into (more steps: closer to the
-        heat kernel's sharp fall-off between scales).
+        Implicit steps the detail smoothing is split into (more steps: closer
+        to the heat kernel's sharper fall-off between scales).
+    detail_smoothing : {'laplacian', 'bilaplacian'}, default 'laplacian'
+        The detail smoothing's operator: ``'laplacian'``, the paper's (and
+        Desbrun et al.'s) implicit Laplacian smoothing; ``'bilaplacian'``,
+        the same implicit scheme with ``L M^-1 L`` and ``tau = sigma^4 /
+        steps``, a sharper split between scales (a wave kept by
+        ``(1 + (sigma k)^4 / steps)^-steps``): measured on the generated
+        forehead, the same wrinkle residual with 0.99 instead of 0.76
+        correlation of the kept detail with the truth (see the docs).
     backend : {'auto', 'pardiso', 'scipy'}, default 'auto'
         Sparse factorisation, see :class:`~facecap.deform.factor_spd.SpdFactor`.
 
@@ -193,7 +228,7 @@ def remove_wrinkles_arrays(
 
     Notes
     -----
-    The smoothing solves ``(M + tau L) S_{k+1} = M S_k`` ``smoothing_steps``
+    The (Laplacian) smoothing solves ``(M + tau L) S_{k+1} = M S_k`` ``smoothing_steps``
     times with ``tau = sigma^2 / (2 steps)`` (``L`` the cotangent Laplacian
     and ``M`` the mixed Voronoi mass of the scan, :func:`~facecap.mesh.laplace_operators`):
     an implicit integration of the heat equation for time ``sigma^2 / 2``,
@@ -273,6 +308,8 @@ def remove_wrinkles_arrays(
     large_scale = None if large_scale_mm is None else as_positive(large_scale_mm, name="large_scale_mm")
     if isinstance(smoothing_steps, bool) or not isinstance(smoothing_steps, (int, np.integer)) or smoothing_steps < 1:
         raise InputError(f"smoothing_steps: expected an integer >= 1, got {smoothing_steps!r}")
+    if detail_smoothing not in ("laplacian", "bilaplacian"):
+        raise InputError(f"detail_smoothing: expected 'laplacian' or 'bilaplacian', got {detail_smoothing!r}")
     unchanged = WrinkleRemoval(vertices=V.copy(), base=V.copy(), fine_details=np.zeros_like(V),
                                changed=np.zeros(n, dtype=bool))
 
@@ -312,6 +349,8 @@ def remove_wrinkles_arrays(
     near = free[E[:, 0]] | free[E[:, 1]]
     spacing = float(np.median(edge_length[near]))
     reach = _BILAPLACIAN_RINGS + math.ceil(_SMOOTHING_REACH * sigma / spacing)
+    if detail_smoothing == "bilaplacian":  # its stencil reaches one ring further
+        reach += 1
     if large_scale is not None:  # the reference's bi-Laplacian stencil (2 rings) must be complete too
         reach += 2 + math.ceil(_SMOOTHING_REACH * large_scale / spacing)
     distance = _ring_distance(adjacency, free, reach)
@@ -324,20 +363,15 @@ def remove_wrinkles_arrays(
     distance_p = distance[support]
     open_p = open_boundary[support]
 
-    # Step 1: the fine details, scan minus a little implicit Laplacian smoothing.
+    # Step 1: the fine details, scan minus a little implicit Laplacian smoothing. Fixed: the
+    # vertices whose stencil the cut does not hold whole (1 ring for L, 2 for L M^-1 L) and the
+    # open boundaries.
     Sp = Vp.copy()
     if sigma > 0:
         ops = laplace_operators(Vp, Fp)
-        # fixed: the cut's outer ring (its Laplacians are incomplete) and the open boundaries
-        moving = np.flatnonzero((distance_p < reach) & ~open_p)
-        fixed = np.flatnonzero(~((distance_p < reach) & ~open_p))
-        tau = sigma**2 / (2.0 * smoothing_steps)
-        L = ops.L.tocsr()
-        factor = SpdFactor((sp.diags(ops.mass[moving]) + tau * L[moving][:, moving]).tocsr(), backend=backend)
-        from_fixed = tau * (L[moving][:, fixed] @ Vp[fixed])
-        for _ in range(smoothing_steps):
-            Sp[moving] = factor.solve(ops.mass[moving, None] * Sp[moving] - from_fixed)
-        factor.free()
+        order = 1 if detail_smoothing == "laplacian" else 2
+        Sp = _implicit_smoothing(Vp, ops.L.tocsr(), ops.mass, (distance_p <= reach - order) & ~open_p,
+                                 sigma, order=order, steps=smoothing_steps, backend=backend)
     details = LocalFrameDetails.encode(Vp, Sp, Fp)
 
     # Step 2: the steady state of bi-Laplacian smoothing, the rings around the region fixed,
@@ -347,17 +381,9 @@ def remove_wrinkles_arrays(
     bilaplacian = (L @ sp.diags(1.0 / ops.mass) @ L).tocsr()
     source = np.zeros_like(Sp)
     if large_scale is not None:
-        # the reference: one implicit step of bi-Laplacian smoothing, (M + s^4 L M^-1 L) R = M S,
-        # on the vertices whose bi-Laplacian stencil the cut holds whole; the others keep S
-        moving = np.flatnonzero((distance_p <= reach - 2) & ~open_p)
-        fixed = np.flatnonzero(~((distance_p <= reach - 2) & ~open_p))
-        stiffness = large_scale**4
-        factor = SpdFactor((sp.diags(ops.mass[moving]) + stiffness * bilaplacian[moving][:, moving]).tocsr(),
-                           backend=backend)
-        reference = Sp.copy()
-        reference[moving] = factor.solve(ops.mass[moving, None] * Sp[moving]
-                                         - stiffness * (bilaplacian[moving][:, fixed] @ Sp[fixed]))
-        factor.free()
+        # the reference: one implicit step of bi-Laplacian smoothing, (M + s^4 L M^-1 L) R = M S
+        reference = _implicit_smoothing(Sp, L, ops.mass, (distance_p <= reach - 2) & ~open_p, large_scale,
+                                        order=2, steps=1, backend=backend, bilaplacian=bilaplacian)
         source = bilaplacian @ reference
     fr, kn = np.flatnonzero(free_p), np.flatnonzero(~free_p)
     factor = SpdFactor(bilaplacian[fr][:, fr].tocsr(), backend=backend)
@@ -386,6 +412,7 @@ def remove_wrinkles(
     detail_scale_mm: float = DEFAULT_DETAIL_SCALE_MM,
     large_scale_mm: float | None = DEFAULT_LARGE_SCALE_MM,
     smoothing_steps: int = DEFAULT_SMOOTHING_STEPS,
+    detail_smoothing: DetailSmoothing = "laplacian",
     backend: Backend = "auto",
 ) -> Mesh:
     """The scan without the wrinkles it already has in ``region_mask`` (Bickel et al. 2007, 5.4).
@@ -400,7 +427,7 @@ def remove_wrinkles(
     region_mask : (n,) bool array, optional
         The wrinkle regions (for a generated case, ``truth.npz``'s
         ``wrinkle_mask``); default every vertex.
-    detail_scale_mm, large_scale_mm, smoothing_steps, backend
+    detail_scale_mm, large_scale_mm, smoothing_steps, detail_smoothing, backend
         See :func:`remove_wrinkles_arrays`.
 
     Returns
@@ -417,5 +444,6 @@ def remove_wrinkles(
     if not isinstance(mesh, Mesh):
         raise InputError(f"mesh: expected a facecap Mesh, got {type(mesh).__name__}")
     result = remove_wrinkles_arrays(mesh.vertices, mesh.faces, region_mask, detail_scale_mm=detail_scale_mm,
-                                    large_scale_mm=large_scale_mm, smoothing_steps=smoothing_steps, backend=backend)
+                                    large_scale_mm=large_scale_mm, smoothing_steps=smoothing_steps,
+                                    detail_smoothing=detail_smoothing, backend=backend)
     return mesh.with_vertices(result.vertices)
