@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import igl
 import numpy as np
 import pytest
@@ -31,8 +33,21 @@ def shell():
 
 
 @pytest.fixture(scope="module")
-def tets(shell):
-    return tetrahedralize_shell(shell.V, shell.F, n_tets=TEST_TETS)
+def tets(shell, tmp_path_factory):
+    """The coarse mesh, made from an empty working folder (fTetWild itself writes files into it)."""
+    folder = tmp_path_factory.mktemp("cwd")
+    previous = os.getcwd()
+    os.chdir(folder)
+    try:
+        mesh = tetrahedralize_shell(shell.V, shell.F, n_tets=TEST_TETS)
+    finally:
+        os.chdir(previous)
+    return mesh, folder
+
+
+def test_the_mesher_leaves_no_files_behind(tets) -> None:
+    _, folder = tets
+    assert list(folder.iterdir()) == []
 
 
 def test_closed_surface_is_watertight_outward_and_keeps_the_scan_vertices(shell) -> None:
@@ -112,6 +127,7 @@ def nose_footprint(S, lm):
 
 
 def test_tetrahedra_are_positive_and_fill_the_meshed_volume(shell, tets) -> None:
+    tets, _ = tets
     X, T = tets.X, tets.T
     assert X.dtype == np.float64 and T.dtype == np.int64 and T.shape[1] == 4
     vol = tet_volumes(X, T)

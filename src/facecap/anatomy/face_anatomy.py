@@ -88,7 +88,9 @@ class FaceAnatomy:
     bone_faces : (g, 3) int64 array
         Its triangles, facing away from the tissue (into the skull).
     tissue_thickness_mm : (s,) float64 array, mm
-        The interpolated tissue-depth field at the meshed skin vertices.
+        Skin-to-bone depth along the smoothed normal at each meshed skin
+        vertex (row ``i`` is the ``i``-th vertex of ``np.flatnonzero(skin_meshed)``;
+        at least 1 mm).
     provenance : dict
         How the model was made (source scan, options, timings, quality, sources).
     """

@@ -13,6 +13,9 @@ import glob
 import importlib.machinery
 import importlib.util
 import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from types import ModuleType
 from typing import NamedTuple
 
@@ -160,6 +163,46 @@ def tet_quality(X: FloatArray, T: IntArray) -> TetQuality:
     )
 
 
+@contextmanager
+def _in_scratch_folder() -> Iterator[None]:
+    """Run the block in a temporary working folder, deleted afterwards.
+
+    fTetWild writes ``__tracked_surface.stl`` into the current folder on every
+    run (whatever its log level); this keeps it out of the user's folder. It
+    changes the process's working folder for the duration, so do not mesh
+    from several threads at once.
+    """
+    previous = os.getcwd()
+    with tempfile.TemporaryDirectory(prefix="facecap-ftetwild-") as scratch:
+        os.chdir(scratch)
+        try:
+            yield
+        finally:
+            os.chdir(previous)
+
+
+def _run_ftetwild(V: FloatArray, F: IntArray, edge: float, bbox: float, threads: int,
+                  optimize_passes: int) -> tuple[np.ndarray, np.ndarray]:
+    """One fTetWild call with this module's settings (positional: the wrapper takes no keywords)."""
+    return _ftetwild().tetrahedralize_mesh(
+        np.ascontiguousarray(V, dtype=np.float64), np.ascontiguousarray(F, dtype=np.uint32),
+        True,  # optimize
+        False,  # skip_simplify
+        0.05,  # edge_length_r, ignored when the absolute length is given
+        float(edge),
+        float(ENVELOPE_MM / bbox),  # epsilon, relative to the bounding-box diagonal
+        10.0,  # stop_energy (fTetWild's default)
+        False,  # coarsen
+        int(threads),
+        int(optimize_passes),
+        6,  # log level
+        True,  # quiet
+        False,  # vtk_ordering
+        False,  # disable_filtering
+        np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int32), np.zeros(0),
+    )
+
+
 def tetrahedralize_shell(V: FloatArray, F: IntArray, *, n_tets: int = 100_000, threads: int = 2,
                         optimize_passes: int = OPTIMIZE_PASSES) -> TetMesh:
     """Fill a closed, outward-oriented triangle surface with about ``n_tets`` tetrahedra.
@@ -221,23 +264,8 @@ def tetrahedralize_shell(V: FloatArray, F: IntArray, *, n_tets: int = 100_000, t
         if trimesh.Trimesh(Vd, Fd, process=False).is_watertight:
             Vin, Fin = Vd, Fd
     bbox = float(np.linalg.norm(Vin.max(axis=0) - Vin.min(axis=0)))
-    X, T = _ftetwild().tetrahedralize_mesh(
-        np.ascontiguousarray(Vin, dtype=np.float64), np.ascontiguousarray(Fin, dtype=np.uint32),
-        True,  # optimize
-        False,  # skip_simplify
-        0.05,  # edge_length_r, ignored when the absolute length is given
-        float(edge),
-        float(ENVELOPE_MM / bbox),  # epsilon, relative to the bounding-box diagonal
-        10.0,  # stop_energy (fTetWild's default)
-        False,  # coarsen
-        int(threads),
-        int(optimize_passes),
-        6,  # log level
-        True,  # quiet
-        False,  # vtk_ordering
-        False,  # disable_filtering
-        np.zeros((0, 3)), np.zeros((0, 4), dtype=np.int32), np.zeros(0),
-    )
+    with _in_scratch_folder():
+        X, T = _run_ftetwild(Vin, Fin, edge, bbox, threads, optimize_passes)
     X = np.ascontiguousarray(X, dtype=np.float64)
     T = np.ascontiguousarray(T, dtype=np.int64)
     if T.shape[0] == 0:
