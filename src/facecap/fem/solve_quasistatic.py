@@ -43,9 +43,11 @@ class QuasistaticResult(NamedTuple):
     inverted_tets_initial : int
         The same at the initial guess.
     timings : dict of str to float, s
-        ``assembly`` (energy, forces, stiffness and projection), ``factorisation``
+        ``assembly`` (element stiffness, projection, CSR refill), ``factorisation``
         (including attempts on an exact stiffness that was not positive definite),
-        ``solves`` and ``line_search``, summed over the steps.
+        ``solves`` and ``line_search`` (energy and forces at the trial points), summed
+        over the steps. The stiffness at the solution is assembled only when a Jacobian
+        asks for it (:meth:`QuasistaticSolver.factor`).
     projected_steps : int
         Steps that used the projected stiffness (the others used the exact one).
     """
@@ -191,6 +193,10 @@ class QuasistaticSolver:
                 break
             if iterations >= self.max_iterations:
                 break
+            if state.element_stiffness is None:  # the line search's state has forces, not stiffness
+                t = time.perf_counter()
+                state = model.evaluate(x, a, definiteness_fix=False)
+                timings["assembly"] += time.perf_counter() - t
             r = residual.reshape(-1)
             step = None
             if wait_before_exact == 0:
@@ -207,16 +213,14 @@ class QuasistaticSolver:
                 assert step is not None
                 projected_steps += 1
             t = time.perf_counter()
-            x, alpha = self._line_search(x, a, state.energy, r, step, free)
+            x, alpha, trial = self._line_search(x, a, state.energy, r, step, free)
             timings["line_search"] += time.perf_counter() - t
             iterations += 1
+            if alpha == 0.0 or trial is None:
+                break
+            state = trial  # energy and forces at the new x; its stiffness only if another step follows
             if alpha == 1.0 and wait_before_exact > 0:
                 wait_before_exact -= 1
-            t = time.perf_counter()
-            state = model.evaluate(x, a, definiteness_fix=False)
-            timings["assembly"] += time.perf_counter() - t
-            if alpha == 0.0:
-                break
         self._positions, self._activations, self._state = x, a, state
         return QuasistaticResult(x, converged, iterations, residual_max, state.energy, state.inverted,
                                  inverted_initial, timings, projected_steps)
@@ -246,8 +250,13 @@ class QuasistaticSolver:
         return step
 
     def _line_search(self, x: FloatArray, a: FloatArray, energy: float, r: FloatArray, step: FloatArray,
-                     free: Any) -> tuple[FloatArray, float]:
-        """Backtracking (Armijo) on the energy along ``step``; the new positions and the step length (0: none)."""
+                     free: Any) -> tuple[FloatArray, float, ElementResponse | None]:
+        """Backtracking (Armijo) on the energy along ``step``.
+
+        Returns the new positions, the step length (0: no decrease found) and the model's
+        energy and forces there (the forces come almost free with the energy and decide
+        convergence without assembling a stiffness that would not be used).
+        """
         slope = -float(np.dot(r, step))  # dE/dalpha at 0, negative for a descent step
         # The energy is a sum of element terms: below this difference the comparison is round-off.
         noise = 1e-12 * (abs(energy) + 1.0) + 1e-9 * self.force_tolerance_mn * float(np.abs(step).max(initial=0.0))
@@ -257,11 +266,11 @@ class QuasistaticSolver:
             trial = flat.copy()
             trial[free] += alpha * step
             trial_x = trial.reshape(x.shape)
-            trial_energy = self.model.evaluate(trial_x, a, derivatives=0).energy
-            if np.isfinite(trial_energy) and trial_energy <= energy + 1e-4 * alpha * slope + noise:
-                return trial_x, alpha
+            response = self.model.evaluate(trial_x, a, derivatives=1)
+            if np.isfinite(response.energy) and response.energy <= energy + 1e-4 * alpha * slope + noise:
+                return trial_x, alpha, response
             alpha *= 0.5
-        return x, 0.0
+        return x, 0.0, None
 
     # -- reuse of the factorisation (eq. 5 and 6) ----------------------------------------------
     def _drop_factor(self) -> None:
@@ -277,9 +286,12 @@ class QuasistaticSolver:
         The exact stiffness where it is positive definite (see ``exact_jacobians``), else
         the projected one; ``jacobian_stiffness`` says which.
         """
-        state = self._state
-        if state is None or state.element_stiffness is None or state.stress_derivative is None:
+        if self._state is None or self._positions is None or self._activations is None:
             raise InputError("no solution yet: call solve() first")
+        if self._state.element_stiffness is None:  # the solve ended on the line search's forces
+            self._state = self.model.evaluate(self._positions, self._activations, definiteness_fix=False)
+        state = self._state
+        assert state.element_stiffness is not None and state.stress_derivative is not None
         if self._factor is None:
             if self.exact_jacobians:
                 stiffness = self.model.assemble(state.element_stiffness, free_only=True)
