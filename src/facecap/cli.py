@@ -457,6 +457,9 @@ def _add_wrinkles(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--first-mocap-frame", type=float, default=None,
                    help="mocap frame of video frame 0 [the camera file's, else 0]")
     p.add_argument("--depth-scale", type=float, default=1.0, help="scale every wrinkle's depth [1.0]")
+    p.add_argument("--edits", default=None,
+                   help="JSON edit file: depth scales per wrinkle and frame range, wrinkles drawn as curves or SVG "
+                        "paths in a camera image (docs/wrinkles.md, Editing)")
     p.add_argument("--camera-units", default="mm", help="unit of T in OpenCV calibration files [mm]")
     p.add_argument("--scheduler", default=None,
                    help="Dask scheduler address for an existing cluster; 'local' for a local cluster of --workers "
@@ -500,6 +503,11 @@ def _cmd_wrinkles(args: argparse.Namespace) -> int:
         raise FacecapError(f"--masks: {len(args.masks)} masks for {len(args.video)} footage (one per camera)")
     if args.depth_scale < 0 or args.workers < 1:
         raise FacecapError("--depth-scale must be >= 0 and --workers >= 1")
+    edits = None
+    if args.edits is not None:
+        from .wrinkles import read_wrinkle_edits
+
+        edits = read_wrinkle_edits(args.edits)  # before any long work
     cameras, rate, first = _camera_setup(args.cameras, args.video, args.camera_units)
     rate = args.video_rate if args.video_rate is not None else rate
     if rate is None:
@@ -509,7 +517,7 @@ def _cmd_wrinkles(args: argparse.Namespace) -> int:
     done = capture_wrinkles(args.result, cameras, args.video, args.masks, args.out, video_rate_hz=rate,
                             first_mocap_frame=first, depth_scale=args.depth_scale, scheduler=scheduler,
                             n_workers=args.workers, work_dir=args.work, exports=parse_export_formats(args.export),
-                            anchor=not args.per_frame_projection, progress=not args.quiet)
+                            anchor=not args.per_frame_projection, edits=edits, progress=not args.quiet)
     if not args.quiet:
         t = done.timings
         print(f"wrote {done.out_dir}: wrinkles on {done.n_video_frames} video frames (tracking {t['tracking_s']:.1f} s, "

@@ -129,3 +129,88 @@ def test_a_result_without_its_correspondence_map_is_refused(animated_case: tuple
         capture_wrinkles(copy, setup.cameras, [case / c.name for c in setup.cameras],
                          [case / f"mask_{c.name}.png" for c in setup.cameras], tmp_path / "out", video_rate_hz=12.5)
     assert not (tmp_path / "out").exists()
+
+
+def test_depth_edits_and_a_drawn_wrinkle(animated_case: tuple[Path, Path], wrinkled: Path, tmp_path: Path) -> None:
+    from facecap.wrinkles import read_wrinkle_edits
+
+    case, animate = animated_case
+    setup = read_camera_file(case / "cameras.json")
+    left = setup.camera("cam_left")
+    doc = json.loads((wrinkled / "wrinkles.json").read_text())
+    deepest = max(doc["frames"][2]["wrinkles"], key=lambda w: max(w["depth_mm"]))
+    first_identity = deepest["wrinkle"].split("+")[0]
+    # a valley drawn along the first forehead line's place in the left image at the neutral frame
+    truth = np.load(case / "truth.npz")
+    M = truth["mocap_from_scan"] @ truth["head_pose"][0]
+    line = truth["curve_points"][0, list(truth["curve_names"]).index("forehead_0")].astype(np.float64)
+    pixels = left.project(line @ M[:3, :3].T + M[:3, 3]).pixels[8:40]
+    svg = "M " + " L ".join(f"{x:.2f} {y:.2f}" for x, y in pixels)
+    edits = read_wrinkle_edits({
+        "depth": [{"scale": 2.0, "wrinkles": [first_identity], "frames": [8, 8]}],
+        "add": [{"camera": "cam_left", "frames": [0, 0], "depth_mm": 0.5, "width_mm": 2.0, "svg_path": svg}],
+    })
+    out = tmp_path / "edited"
+    capture_wrinkles(animate, setup.cameras, [case / c.name for c in setup.cameras],
+                     [case / f"mask_{c.name}.png" for c in setup.cameras], out, video_rate_hz=setup.video_rate_hz,
+                     edits=edits)
+    A = read_result(animate).frames().astype(np.float64)
+    plain = read_result(wrinkled).frames().astype(np.float64) - A
+    edited = read_result(out).frames().astype(np.float64) - A
+    # outside the edit's frames nothing changes
+    assert np.array_equal(edited[4], plain[4])
+    # at mocap frame 8 the chosen wrinkle's valley is twice as deep: compare vertices on its line only
+    points = np.asarray(deepest["points_mm"])
+    from scipy.spatial import cKDTree
+
+    near = cKDTree(points).query(A[8], distance_upper_bound=0.5)[0] < 0.5
+    deep = near & (np.linalg.norm(plain[8], axis=1) > 0.1)
+    ratio = np.linalg.norm(edited[8][deep], axis=1) / np.linalg.norm(plain[8][deep], axis=1)
+    assert deep.sum() > 10 and abs(np.median(ratio) - 2.0) < 0.1
+    # the drawn valley at the neutral frame: 0.5 mm deep under the drawn curve, where nothing was before
+    assert np.abs(plain[0]).max() < 1e-5
+    depth = np.linalg.norm(edited[0], axis=1)
+    assert 0.4 < depth.max() < 0.55
+    deepest_vertex = A[0][np.argmax(depth)]
+    seen = left.project(deepest_vertex @ M[:3, :3].T + M[:3, 3]).pixels
+    assert np.min(np.linalg.norm(pixels - seen, axis=1)) < 6.0
+    drawn = [w for w in json.loads((out / "wrinkles.json").read_text())["frames"][0]["wrinkles"]
+             if w["wrinkle"] == "drawn"]
+    assert len(drawn) == 1 and max(drawn[0]["depth_mm"]) == pytest.approx(0.5, abs=1e-4)
+
+
+def test_bad_edit_files_are_refused_naming_the_entry(tmp_path: Path) -> None:
+    from facecap.wrinkles import read_wrinkle_edits
+
+    path = tmp_path / "edits.json"
+    path.write_text(json.dumps({"add": [{"camera": "cam_left", "depth_mm": 0.5, "width_mm": 2.0}]}))
+    with pytest.raises(InputError, match=r"edits.json: add\[0\]: give exactly one of"):
+        read_wrinkle_edits(path)
+    path.write_text(json.dumps({"depth": [{"scale": -1}]}))
+    with pytest.raises(InputError, match=r"depth\[0\]: 'scale' must be >= 0"):
+        read_wrinkle_edits(path)
+    path.write_text("{not json")
+    with pytest.raises(InputError, match="not JSON"):
+        read_wrinkle_edits(path)
+    with pytest.raises(InputError, match="svg_path"):
+        read_wrinkle_edits({"add": [{"camera": "c", "depth_mm": 1, "width_mm": 1, "svg_path": "M 0 0"}]})
+
+
+def test_svg_path_data_is_sampled_on_the_curve_it_describes(tmp_path: Path) -> None:
+    from facecap.wrinkles import read_wrinkle_edits, svg_path_points
+
+    points = svg_path_points("M 10 20 C 10 120 110 120 110 20", spacing_px=2.0)
+    t = np.linspace(0, 1, 20001)[:, None]
+    P0, P1, P2, P3 = (np.array(p, float) for p in ((10, 20), (10, 120), (110, 120), (110, 20)))
+    bezier = (1 - t) ** 3 * P0 + 3 * (1 - t) ** 2 * t * P1 + 3 * (1 - t) * t**2 * P2 + t**3 * P3
+    gaps = np.linalg.norm(points[:, None] - bezier[None], axis=2).min(axis=1)
+    assert gaps.max() < 0.01 and np.allclose(points[[0, -1]], [P0, P3])
+    steps = np.linalg.norm(np.diff(points, axis=0), axis=1)
+    assert steps.max() < 2.2  # about every 2 px along the curve
+    # the same path in an SVG file, as a drawing program writes it
+    (tmp_path / "drawn.svg").write_text('<svg xmlns="http://www.w3.org/2000/svg" width="1384" height="1038">'
+                                        '<path d="M 10 20 C 10 120 110 120 110 20" stroke="red"/></svg>')
+    (tmp_path / "edits.json").write_text(json.dumps(
+        {"add": [{"camera": "cam_left", "depth_mm": 0.5, "width_mm": 2.0, "svg_file": "drawn.svg"}]}))
+    drawn = read_wrinkle_edits(tmp_path / "edits.json").add[0]
+    assert np.allclose(drawn.curve_px, svg_path_points("M 10 20 C 10 120 110 120 110 20"))

@@ -17,13 +17,16 @@
   valley spline from one image, the ratio fit of eq. 7 by batched Gauss-Newton.
 - :class:`DiscreteShell`, :func:`minimize_shell` (``discrete_shell.py``): the nonlinear
   discrete shell of eq. 8 and its damped Gauss-Newton minimiser.
-- :class:`SurfaceWrinkle`, :func:`wrinkles_on_surface`, :func:`merge_camera_wrinkles`
-  (``surface_wrinkles.py``): valley splines cast onto the animated face, the cameras merged (5.3).
+- :class:`SurfaceWrinkle`, :func:`wrinkles_on_surface`, :func:`merge_camera_wrinkles`,
+  :func:`anchor_curves` (``surface_wrinkles.py``): valley splines cast onto the animated face, the cameras merged (5.3).
 - :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`
   (``synthesize_wrinkles.py``): valleys imposed and bulges by the shell, region by region (5.3).
 - :func:`capture_wrinkles`, :class:`WrinkleCapture`, :class:`WrinkleFrameStage`,
-  :func:`large_scale_in_mocap` (``capture_wrinkles.py``): the whole layer over a take, on the
+  :func:`large_scale_in_mocap`, :func:`first_frame_anchors` (``capture_wrinkles.py``): the whole layer over a take, on the
   frame runner (``facecap wrinkles``).
+- :class:`WrinkleEdits`, :func:`read_wrinkle_edits`, :class:`DepthEdit`, :class:`DrawnWrinkle`,
+  :func:`svg_path_points` (``wrinkle_edits.py``): depth edits per wrinkle and frame range, wrinkles drawn
+  by hand (6.2).
 - :func:`remove_wrinkles`, :func:`remove_wrinkles_arrays`, :class:`WrinkleRemoval`
   (``remove_wrinkles.py``): the wrinkles a neutral scan already has, removed by
   multi-scale smoothing with its fine details kept (section 5.4).
@@ -60,9 +63,16 @@ from .remove_wrinkles import (
     remove_wrinkles_arrays,
 )
 from .discrete_shell import DiscreteShell, ShellMinimum, minimize_shell
-from .surface_wrinkles import SurfaceWrinkle, merge_camera_wrinkles, wrinkles_on_surface
+from .surface_wrinkles import SurfaceWrinkle, anchor_curves, merge_camera_wrinkles, wrinkles_on_surface
 from .synthesize_wrinkles import WrinkleSynthesis, smoothed_normals, synthesize_wrinkles
-from .capture_wrinkles import WrinkleCapture, WrinkleFrameStage, capture_wrinkles, large_scale_in_mocap
+from .capture_wrinkles import (
+    WrinkleCapture,
+    WrinkleFrameStage,
+    capture_wrinkles,
+    first_frame_anchors,
+    large_scale_in_mocap,
+)
+from .wrinkle_edits import DepthEdit, DrawnWrinkle, WrinkleEdits, read_wrinkle_edits, svg_path_points
 
 __all__ = [
     "PaintClassifier",
@@ -95,6 +105,7 @@ __all__ = [
     "SurfaceWrinkle",
     "wrinkles_on_surface",
     "merge_camera_wrinkles",
+    "anchor_curves",
     "synthesize_wrinkles",
     "WrinkleSynthesis",
     "smoothed_normals",
@@ -108,4 +119,10 @@ __all__ = [
     "DEFAULT_DETAIL_SCALE_MM",
     "DEFAULT_LARGE_SCALE_MM",
     "DEFAULT_SMOOTHING_STEPS",
+    "first_frame_anchors",
+    "WrinkleEdits",
+    "read_wrinkle_edits",
+    "DepthEdit",
+    "DrawnWrinkle",
+    "svg_path_points",
 ]

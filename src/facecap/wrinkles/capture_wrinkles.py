@@ -101,11 +101,13 @@ class WrinkleFrameStage:
     anchors : mapping of str to (triangles, barycentric), optional
         Valley lines fixed to the skin by identity (``'<camera>:<id>'``, :func:`~facecap.wrinkles.anchor_curves`);
         a wrinkle without one is cast onto each frame anew.
+    edits : WrinkleEdits, optional
+        Depth edits by wrinkle and frame range, and wrinkles drawn by hand (:mod:`~facecap.wrinkles.wrinkle_edits`).
     """
 
     def __init__(self, result_dir: str, cameras: Sequence[Any], footage: Sequence[str], tracks: Sequence[Any],
                  mocap_frames: Any, n_slots: int, options: Mapping[str, Any] | None = None,
-                 anchors: Mapping[str, Any] | None = None) -> None:
+                 anchors: Mapping[str, Any] | None = None, edits: Any = None) -> None:
         self.result_dir = str(result_dir)
         self.cameras = list(cameras)
         self.footage = [str(p) for p in footage]
@@ -114,6 +116,22 @@ class WrinkleFrameStage:
         self.n_slots = int(n_slots)
         self.options = dict(options or {})
         self.anchors = dict(anchors or {})
+        self.edits = edits
+
+    def __getstate__(self) -> dict[str, Any]:
+        # the opened result is a per-process cache, not part of the stage
+        return {k: v for k, v in self.__dict__.items() if k != "_opened"}
+
+    def _result(self) -> tuple[Any, dict[str, np.ndarray]]:
+        """The result folder and its correspondence map, opened once per process."""
+        opened = getattr(self, "_opened", None)
+        if opened is None:
+            from ..io.read_result import read_result
+
+            with np.load(Path(self.result_dir) / "correspondence.npz") as data:
+                correspondence = {k: data[k] for k in data.files}
+            opened = self._opened = (read_result(self.result_dir), correspondence)
+        return opened
 
     def parameters(self) -> dict[str, Any]:
         """What the frames depend on (the runner refuses to resume a run with other values)."""
@@ -122,14 +140,13 @@ class WrinkleFrameStage:
                 "n_slots": self.n_slots, "mocap_frames": self.mocap_frames.tolist(),
                 "anchors": {k: [np.round(np.asarray(a, dtype=np.float64), 8).tolist() for a in v]
                             for k, v in sorted(self.anchors.items())},
+                "edits": None if self.edits is None else self.edits.describe(),
                 "tracks": [[[(i, c, np.round(np.asarray(p), 4).tolist()) for i, c, p in frame] for frame in cam]
                            for cam in self.tracks]}
 
     def large_scale(self, video_frame: int) -> FloatArray:
         """The large-scale face (mm) at a video frame's mocap time (linear between mocap frames)."""
-        from ..io.read_result import read_result
-
-        result = read_result(self.result_dir)
+        result = self._result()[0]
         position = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
         lo = int(np.floor(position))
         hi = min(lo + 1, result.n_frames - 1)
@@ -140,18 +157,17 @@ class WrinkleFrameStage:
     def frame(self, video_frame: int) -> tuple[dict[str, np.ndarray], list[Any]]:
         """One video frame: the wrinkle displacement and the merged valley lines."""
         from ..cameras import RayCaster, open_footage
-        from ..io.read_result import read_result
         from .fit_cross_sections import fit_cross_sections
         from .surface_wrinkles import merge_camera_wrinkles, wrinkles_on_surface
         from .synthesize_wrinkles import synthesize_wrinkles
 
-        result = read_result(self.result_dir)
+        clock = time.perf_counter()
+        result, correspondence = self._result()
         faces = result.mesh.faces
-        with np.load(Path(self.result_dir) / "correspondence.npz") as data:
-            correspondence = {k: data[k] for k in data.files}
         A = self.large_scale(video_frame)
         mocap_frame = int(round(float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))))
         caster = RayCaster(large_scale_in_mocap(A, correspondence, mocap_frame), faces)
+        seconds = {"large_scale_and_ray_caster_s": time.perf_counter() - clock, "cross_sections_s": 0.0}
         views, residuals = [], {}
         for camera, path, track in zip(self.cameras, self.footage, self.tracks):
             curves = track[video_frame]
@@ -161,17 +177,31 @@ class WrinkleFrameStage:
             with open_footage(path) as footage:
                 image = footage.frame(video_frame)
             polylines = [np.asarray(p, dtype=np.float64) for _, _, p in curves]
+            clock = time.perf_counter()
             sections = fit_cross_sections(image, polylines, camera, caster)
+            seconds["cross_sections_s"] += time.perf_counter() - clock
             for k, (identity, _, _) in enumerate(curves):
                 mine = sections.samples.curve == k
-                residuals[f"{camera.name}:{identity}"] = float(np.nanmean(sections.fit.rms[mine])) if mine.any() \
-                    else float("nan")
+                rms = sections.fit.rms[mine]
+                residuals[f"{camera.name}:{identity}"] = float(rms[np.isfinite(rms)].mean()) \
+                    if np.isfinite(rms).any() else float("nan")
             names = [f"{camera.name}:{i}" for i, _, _ in curves]
             views.append(wrinkles_on_surface(polylines, sections, camera, caster, A, faces, identities=names,
                                              colors=[c for _, c, _ in curves],
                                              anchors=[self.anchors.get(name) for name in names]))
+        clock = time.perf_counter()
         merged = merge_camera_wrinkles(views)
-        synthesis = synthesize_wrinkles(A, faces, merged, **self.options)
+        options = dict(self.options)
+        if self.edits is not None:
+            at = float(self.mocap_frames[video_frame])
+            merged += self.edits.surface_wrinkles(at, self.cameras, caster, A, faces)
+            base = options.get("depth_scale", 1.0)
+            edited = self.edits.scales([w.wrinkle for w in merged], at)
+            options["depth_scale"] = {name: scale * (base.get(name, 1.0) if isinstance(base, Mapping) else float(base))
+                                      for name, scale in edited.items()}
+        synthesis = synthesize_wrinkles(A, faces, merged, **options)
+        seconds["synthesis_s"] = time.perf_counter() - clock
+        self.last_seconds = seconds  # for benchmarks; never part of the chunk (its bytes must not vary)
         slots = np.full((self.n_slots, CURVE_SAMPLES, 5), np.nan, dtype=np.float32)
         sources = np.full((self.n_slots, len(self.cameras)), -1, dtype=np.int32)
         colors = np.full(self.n_slots, -1, dtype=np.int32)
@@ -184,8 +214,10 @@ class WrinkleFrameStage:
             parts = wrinkle.wrinkle.split("+")
             for part in parts:
                 cam, identity = part.rsplit(":", 1)
-                sources[row, names.index(cam)] = int(identity)
-            residual[row] = np.nanmean([residuals.get(p, np.nan) for p in parts])
+                if identity.isdigit():  # a drawn wrinkle has a name, no tracker id
+                    sources[row, names.index(cam)] = int(identity)
+            found = [residuals[p] for p in parts if np.isfinite(residuals.get(p, np.nan))]
+            residual[row] = np.mean(found) if found else np.nan  # a drawn wrinkle has no fit
         arrays = {"displacement": (synthesis.vertices - A).astype(np.float32), "curves": slots,
                   "sources": sources, "colors": colors, "residual": residual,
                   "regions": np.int32(synthesis.n_regions)}
@@ -262,7 +294,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
                      masks: Sequence[Any], out_dir: str | os.PathLike[str], *, video_rate_hz: float | None = None,
                      first_mocap_frame: float = 0.0, depth_scale: float | Mapping[str, float] = 1.0,
                      scheduler: str | None = "synchronous", n_workers: int = 2, work_dir: Any = None,
-                     exports: Sequence[str] = (), chunk_frames: int = 4, anchor: bool = True,
+                     exports: Sequence[str] = (), chunk_frames: int = 4, anchor: bool = True, edits: Any = None,
                      progress: bool = False, options: Mapping[str, Any] | None = None) -> WrinkleCapture:
     """Track, measure and synthesise the painted wrinkles of a take onto its large-scale result.
 
@@ -299,6 +331,8 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
         scale there) and carry it with the mesh, the cross-sections of each frame placed along it; False
         casts every frame's spline onto that frame's mesh, as the paper does. See ``docs/wrinkles.md``
         (Synthesis) for why anchoring is the default.
+    edits : WrinkleEdits or path-like, optional
+        Depth edits per wrinkle and frame range, wrinkles drawn by hand (:func:`~facecap.wrinkles.read_wrinkle_edits`).
     progress : bool, default False
     options : mapping, optional
         More options of :func:`~facecap.wrinkles.synthesize_wrinkles`.
@@ -333,6 +367,10 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
                          f"{len(footage)} footage, {len(masks)} masks")
     if video_rate_hz is None:
         raise InputError("video_rate_hz: the footage's rate is needed (the camera file's footage.rate_hz)")
+    if edits is not None and not hasattr(edits, "surface_wrinkles"):
+        from .wrinkle_edits import read_wrinkle_edits
+
+        edits = read_wrinkle_edits(edits)
     t = time.perf_counter()
     tracks, counts = [], []
     for camera, path, mask in zip(cameras, footage, masks):
@@ -352,7 +390,8 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     opts = dict(options or {})
     opts["depth_scale"] = dict(depth_scale) if isinstance(depth_scale, Mapping) else float(depth_scale)
     stage = WrinkleFrameStage(str(result_dir.resolve()), cameras, footage, [track[:n_video] for track in tracks],
-                              sync.mocap_frame(np.arange(n_video)), max(n_slots, 1), opts)
+                              sync.mocap_frame(np.arange(n_video)), max(n_slots, 1) + len(getattr(edits, "add", ())),
+                              opts, edits=edits)
     if anchor:
         stage.anchors = first_frame_anchors(stage)
     t = time.perf_counter()
@@ -406,11 +445,12 @@ def _wrinkles_document(run: Any, stage: WrinkleFrameStage, sync: Any) -> dict[st
         splines = {name: {str(i): np.round(np.asarray(p), 2).tolist() for i, _, p in stage.tracks[k][j]}
                    for k, name in enumerate(names)}
         wrinkles = []
-        for row in np.flatnonzero(colors[j] >= 0):
+        for row in np.flatnonzero(np.isfinite(curves[j, :, 0, 0])):
             seen = {names[k]: int(s) for k, s in enumerate(sources[j, row]) if s >= 0}
             c = curves[j, row]
             wrinkles.append({
-                "wrinkle": "+".join(f"{cam}:{i}" for cam, i in seen.items()), "color": int(colors[j, row]),
+                "wrinkle": "+".join(f"{cam}:{i}" for cam, i in seen.items()) if seen else "drawn",
+                "color": int(colors[j, row]) if colors[j, row] >= 0 else None,
                 "cameras": seen, "splines_px": {cam: splines[cam][str(i)] for cam, i in seen.items()},
                 "points_mm": np.round(c[:, :3], 4).tolist(), "width_mm": np.round(c[:, 3], 4).tolist(),
                 "depth_mm": np.round(c[:, 4], 4).tolist(),

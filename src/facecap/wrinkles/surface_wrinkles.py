@@ -17,7 +17,7 @@ import numpy as np
 
 from ..typing import FloatArray
 
-__all__ = ["SurfaceWrinkle", "wrinkles_on_surface", "anchor_curves", "merge_camera_wrinkles", "SNAP_MM"]
+__all__ = ["SurfaceWrinkle", "wrinkles_on_surface", "anchor_curves", "merge_camera_wrinkles"]
 
 SNAP_MM = 2.5
 """Two cameras' curves of one paint closer than this (mean, over their overlap) are one wrinkle."""

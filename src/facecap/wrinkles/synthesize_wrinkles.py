@@ -44,7 +44,7 @@ from .discrete_shell import AREA, BEND, STRETCH, DiscreteShell, minimize_shell
 from .fit_cross_sections import DEFAULT_ROUNDING
 from .surface_wrinkles import SurfaceWrinkle, _nearest_on_polyline
 
-__all__ = ["WrinkleSynthesis", "synthesize_wrinkles", "smoothed_normals", "INFLUENCE_WIDTHS", "SHELL_LENGTH_MM"]
+__all__ = ["WrinkleSynthesis", "synthesize_wrinkles", "smoothed_normals"]
 
 INFLUENCE_WIDTHS = 2.0
 """The shell moves the skin up to this many half-widths from a valley line (the paper's "maximum influence
@@ -128,7 +128,8 @@ def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[Surface
                         influence_widths: float = INFLUENCE_WIDTHS, rounding: float = DEFAULT_ROUNDING,
                         depth_scale: float | Mapping[str, float] = 1.0, stretch: float = STRETCH,
                         bend: float = BEND, area: float = AREA, length_mm: float = SHELL_LENGTH_MM, shell: bool = True,
-                        motion: str = "normal", iterations: int = 20, backend: str = "auto") -> WrinkleSynthesis:
+                        motion: str = "normal", segment: bool = True, iterations: int = 20,
+                        backend: str = "auto") -> WrinkleSynthesis:
     """Add the valleys and bulges of ``wrinkles`` to one large-scale frame.
 
     Parameters
@@ -154,6 +155,9 @@ def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[Surface
         How the shell's free vertices move: along their smoothed normals only (a height field on the large
         scale, one unknown per vertex), or freely in 3D (the large scale's tangential placement, which the
         markers fixed, then slides too).
+    segment : bool, default True
+        Solve each influence region on its own (the paper's heuristic); False solves one global problem
+        over every vertex but the valleys (the baseline the regions are measured against).
     iterations : int, default 20
         Gauss-Newton steps per region at most.
     backend : {'auto', 'pardiso', 'scipy'}, default 'auto'
@@ -212,6 +216,8 @@ def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[Surface
         empty = np.zeros(0)
         return WrinkleSynthesis(out, valley, region, 0, empty, empty, np.zeros(0, dtype=np.int64))
     influence |= valley
+    if not segment:
+        influence[:] = True
     normals = smoothed_normals(V, F, vertices=np.flatnonzero(influence))
     out[valley] += offset[valley, None] * normals[valley]
     # regions: connected pieces of the influence over the mesh's edges
