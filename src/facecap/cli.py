@@ -525,6 +525,83 @@ def _cmd_wrinkles(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_remove_wrinkles(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("remove-wrinkles",
+                       help="smooth the wrinkles out of a neutral scan in a region, keeping its fine detail "
+                            "(Bickel et al. 2007, 5.4)")
+    p.add_argument("--scan", required=True, help="the neutral scan: .obj, .ply or .glb")
+    p.add_argument("--scan-units", default="mm", help="length unit of the scan file [mm]")
+    p.add_argument("--region", required=True,
+                   help="the wrinkle region: a JSON list of vertex indices, or a .npy bool mask per vertex")
+    p.add_argument("--out", required=True, help="the scan without its wrinkles (.obj or .ply)")
+    p.set_defaults(func=_cmd_remove_wrinkles)
+
+
+def _region_mask(path: str, n_vertices: int) -> "object":
+    """A vertex mask from a JSON list of indices or a .npy boolean array."""
+    from pathlib import Path
+
+    import numpy as np
+
+    source = Path(path)
+    if source.suffix.lower() == ".npy":
+        mask = np.load(source, allow_pickle=False)
+        if mask.dtype != bool or mask.shape != (n_vertices,):
+            raise FacecapError(f"{path}: expected a bool array of the scan's {n_vertices} vertices, "
+                               f"got {mask.dtype} {mask.shape}")
+        return mask
+    try:
+        indices = np.asarray(json.loads(source.read_text()), dtype=np.int64)
+    except (json.JSONDecodeError, TypeError, ValueError):
+        raise FacecapError(f"{path}: expected a JSON list of vertex indices") from None
+    if indices.ndim != 1 or indices.size == 0 or indices.min() < 0 or indices.max() >= n_vertices:
+        raise FacecapError(f"{path}: expected vertex indices in 0..{n_vertices - 1}")
+    mask = np.zeros(n_vertices, dtype=bool)
+    mask[indices] = True
+    return mask
+
+
+def _cmd_remove_wrinkles(args: argparse.Namespace) -> int:
+    from .io.read_mesh import read_mesh
+    from .io.write_mesh import write_mesh
+    from .wrinkles import remove_wrinkles
+
+    scan = read_mesh(args.scan, unit=args.scan_units)
+    mask = _region_mask(args.region, scan.n_vertices)
+    smooth = remove_wrinkles(scan, mask)
+    write_mesh(smooth, args.out)
+    if not args.quiet:
+        print(f"wrote {args.out}: {int(mask.sum())} of {scan.n_vertices} vertices smoothed")
+    return 0
+
+
+def _add_build_anatomy(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("build-anatomy",
+                       help="bone, a tetrahedral soft-tissue mesh and 36 muscles inside a scan (Sifakis et al. 2005)")
+    p.add_argument("--scan", required=True, help="the neutral scan: .obj, .ply or .glb")
+    p.add_argument("--scan-units", default="mm", help="length unit of the scan file [mm]")
+    p.add_argument("--out", required=True, help="model folder (anatomy.npz, anatomy.json, layout.png)")
+    p.add_argument("--landmarks", default=None,
+                   help="JSON landmarks (name -> vertex index or point); not needed for scans in the ICT topology")
+    p.add_argument("--tets", type=int, default=100_000, help="tetrahedra to aim for [100000]")
+    p.set_defaults(func=_cmd_build_anatomy)
+
+
+def _cmd_build_anatomy(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .anatomy import build_anatomy, render_anatomy_layout
+    from .io.read_mesh import read_mesh
+
+    scan = read_mesh(args.scan, unit=args.scan_units)
+    anatomy = build_anatomy(scan, landmarks=args.landmarks, n_tets=args.tets, progress=not args.quiet)
+    anatomy.save(args.out)
+    render_anatomy_layout(anatomy, Path(args.out) / "layout.png")
+    if not args.quiet:
+        print(f"wrote {args.out}: {len(anatomy.tets)} tetrahedra, {len(anatomy.muscle_names)} muscles")
+    return 0
+
+
 def _add_demo(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="run the main job on the bundled sample, writing facecap-demo/")
     p.add_argument("--out", default="facecap-demo", help="output folder [facecap-demo]")
@@ -559,6 +636,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scan_commands(sub)
     _add_synth(sub)
     _add_wrinkles(sub)
+    _add_remove_wrinkles(sub)
+    _add_build_anatomy(sub)
     _add_demo(sub)
     for action in sub.choices.values():  # let -q/--quiet also follow the command
         action.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
