@@ -184,6 +184,19 @@ def test_jacobians_match_finite_differences_of_the_equilibrium():
     np.testing.assert_allclose(boundary, fd, atol=1e-4 * np.abs(fd).max())
 
 
+def test_exaggeration_by_the_force_length_scale_grows_the_displacement_monotonically():
+    # Section 9: scaling the force-length curve (not activations above 1) exaggerates an expression.
+    model, X, bottom = _activated_block()
+    a = np.array([0.6, 0.3])
+    displacement, x = [], None
+    for scale in [1.0, 1.5, 2.0, 4.0]:
+        result = solve_quasistatic(model.with_force_length_scale(scale), a, X[bottom], x0=x)
+        assert result.converged and result.inverted_tets == 0
+        x = result.positions
+        displacement.append(np.linalg.norm(x - X, axis=1).max())
+    assert np.all(np.diff(displacement) > 0.05 * displacement[0])
+
+
 def test_unconverged_solve_is_reported_and_bad_input_raises():
     model, X, bottom = _activated_block()
     result = solve_quasistatic(model, np.array([1.0, 1.0]), X[bottom], max_iterations=1)
