@@ -86,8 +86,8 @@ class QuasistaticSolver:
         the solution, which is positive definite at a stable equilibrium (Sifakis et al.
         2005, section 6), so they are the true derivatives of the equilibrium. Where it is
         not (PARDISO reports it), they fall back to the projected stiffness of the Newton
-        steps with a :class:`FacecapWarning`. False: always the projected one (no extra
-        assembly; approximate derivatives wherever a tetrahedron was projected).
+        steps with a :class:`FacecapWarning`. False: always the projected one (approximate
+        derivatives wherever a tetrahedron was projected).
 
     Examples
     --------
@@ -331,7 +331,7 @@ class QuasistaticSolver:
             raise InputError(f"rhs: expected shape ({model.n_nodes}, 3) or (c, {model.n_nodes}, 3), got {b.shape}")
         cols = B.reshape(B.shape[0], -1)[:, model.free_dofs].T
         u_free = self.factor().solve(np.ascontiguousarray(cols))
-        out = np.zeros_like(B)
+        out = np.zeros(B.shape)  # C-contiguous, so the reshape below is a view
         out.reshape(B.shape[0], -1)[:, model.free_dofs] = np.asarray(u_free).reshape(cols.shape).T
         return out[0] if single else out
 
