@@ -141,6 +141,9 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
         # --- the real take on the same face
         real_lines = _animate_real_take(stage, sample, progress, render_mesh, plot_series)
 
+        # --- the wrinkle layer (Bickel et al. 2007, 5) on generated footage of painted wrinkles
+        wrinkle_lines = _wrinkle_layer(stage, progress)
+
         summary = {
             "generated_take": {
                 "frames": n_frames, "rate_hz": take.rate, "markers": report["n_markers"],
@@ -151,6 +154,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
             },
             "scan_workflow": scan_lines["summary"],
             "animface_take": real_lines["summary"],
+            "wrinkles": wrinkle_lines["summary"],
             "seconds": time.perf_counter() - t_start,
         }
         for key in ("thin_shell", "warp_alone"):
@@ -166,9 +170,11 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
             f"max {warp_error.max_mm:.3f} mm",
             *scan_lines["lines"],
             *real_lines["lines"],
+            *wrinkle_lines["lines"],
         ]
     lines.append(f"wrote {out}/ in {time.perf_counter() - t_start:.1f} s: animation/ (vertices.npy, rig/, "
                  f"performance_rig.usdc, performance.glb, report.html), scans/ (plan, scans, bases, blend), animface/, "
+                 f"wrinkles/ (footage, large scale, with wrinkles, wrinkles.json), "
                  f"pictures/, {_DEMO_MARKER}")
     lines.append(f"look at it: facecap view {out}/animation --truth {out}/inputs/truth.npz "
                  "(the take in the browser, with its error against the truth)")
@@ -286,3 +292,123 @@ def _animate_real_take(stage: Path, sample, progress: bool, render_mesh, plot_se
             f"max motion {motion.max():.1f} mm",
         ],
     }
+
+
+def _wrinkle_layer(stage: Path, progress: bool) -> dict:
+    """A 9-frame take with painted-wrinkle footage: animate, then the wrinkle layer, with its pictures.
+
+    Video frame 0 is the neutral scan, frames 1-2 every wrinkle-making expression at once. Pictures: the
+    footage with the tracked valley splines, one fitted cross-section against the observed intensities,
+    and the large scale, the result with wrinkles and the truth side by side with the error heat maps.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .cameras import RayCaster, read_camera_file, read_image
+    from .deform.animate_scan import animate_scan
+    from .io._atomic import atomic_path
+    from .io.read_correspondence import read_correspondence
+    from .io.read_markers import read_markers
+    from .io.read_mesh import read_mesh
+    from .io.read_result import read_result
+    from .report import MeshPanel, render_side_by_side
+    from .synth.ict_sample import load_ict_sample
+    from .synth.wrinkles import WRINKLE_EXPRESSIONS
+    from .synth.write_footage_case import write_footage_case
+    from .wrinkles import capture_wrinkles, fit_cross_sections, large_scale_in_mocap, wedge_intensity
+    from .wrinkles.fit_cross_sections import DEFAULT_ROUNDING
+
+    t0 = time.perf_counter()
+    folder = stage / "wrinkles"
+    names = list(load_ict_sample().expression_names)
+    weights = np.zeros((9, len(names)))
+    for expression in WRINKLE_EXPRESSIONS.values():
+        for shape, weight in expression.items():
+            weights[3:, names.index(shape)] += 0.6 * weight
+    files = write_footage_case(folder / "inputs", n_frames=9, seed=2, curves=np.clip(weights, 0.0, 1.0),
+                               progress=progress)
+    scan = read_mesh(files.scan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FacecapWarning)  # head-band markers not in the map: expected
+        animate_scan(scan, read_markers(files.markers), read_correspondence(files.map, scan), folder / "large_scale",
+                     progress=progress)
+    setup = read_camera_file(files.cameras)
+    done = capture_wrinkles(folder / "large_scale", setup.cameras, files.videos, files.masks, folder / "result",
+                            video_rate_hz=setup.video_rate_hz, progress=progress)
+    truth = np.load(files.truth)
+    A = read_result(folder / "large_scale").frames().astype(np.float64)
+    W = read_result(folder / "result").frames().astype(np.float64)
+    t, video = 8, 2
+    true = (truth["vertices"][t] - truth["large_scale"][t]).astype(np.float64)
+    added = W[t] - A[t]
+    wrinkle = np.linalg.norm(true, axis=1) > 0.1
+    error = np.linalg.norm(added - true, axis=1)
+    ratio = float(error[wrinkle].mean() / np.linalg.norm(true, axis=1)[wrinkle].mean())
+    outside = float(np.linalg.norm(added, axis=1)[~truth["wrinkle_mask"]].max())
+    pictures = stage / "pictures"
+
+    # the footage with the tracked splines
+    camera = setup.cameras[0]
+    image = read_image(files.videos[0] / f"frame_{video:06d}.png")
+    doc = json.loads((done.out_dir / "wrinkles.json").read_text())
+    fig, ax = plt.subplots(figsize=(11, 8.3), dpi=100)
+    ax.imshow(np.clip(image.astype(np.float64) / np.iinfo(image.dtype).max / 0.8, 0, 1) ** (1 / 2.2))
+    for entry in doc["frames"][video]["wrinkles"]:
+        spline = entry["splines_px"].get(camera.name)
+        if spline:
+            P = np.asarray(spline)
+            ax.plot(P[:, 0], P[:, 1], "-", color="cyan", lw=1.2)
+    ax.set_axis_off()
+    ax.set_title(f"{camera.name}, video frame {video}: the tracked valley splines (eq. 5)")
+    with atomic_path(pictures / "wrinkles_tracked_splines.png") as tmp:
+        fig.savefig(tmp, format="png", bbox_inches="tight")
+    plt.close(fig)
+
+    # one fitted cross-section against the observed intensities
+    with np.load(folder / "large_scale" / "correspondence.npz") as data:
+        correspondence = {k: data[k] for k in data.files}
+    caster = RayCaster(large_scale_in_mocap(A[t], correspondence, t), scan.faces)
+    curves = [np.asarray(entry["splines_px"][camera.name]) for entry in doc["frames"][video]["wrinkles"]
+              if camera.name in entry["splines_px"]]
+    sections = fit_cross_sections(image, curves, camera, caster)
+    best = int(np.nanargmax(np.where(sections.fit.has_wrinkle, sections.fit.depth, -1.0)))
+    fit, samples = sections.fit, sections.samples
+    valid = samples.valid[best]
+    p = samples.p
+    fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
+    ax.plot(p[valid], samples.intensity[best, valid] / fit.ambient[best], ".", ms=3, label="observed / unshadowed level")
+    model = wedge_intensity(p - fit.offset[best], fit.width[best], fit.depth[best], rounding=DEFAULT_ROUNDING)
+    ax.plot(p, model, "-", label=f"eq. 6 fitted: w {fit.width[best]:.2f} mm, d {fit.depth[best]:.2f} mm")
+    ax.set_xlabel("distance across the valley (mm)")
+    ax.set_ylabel("intensity ratio")
+    ax.set_title("A fitted cross-section (eq. 7)")
+    ax.legend(fontsize=8)
+    with atomic_path(pictures / "wrinkles_cross_section.png") as tmp:
+        fig.savefig(tmp, format="png", bbox_inches="tight")
+    plt.close(fig)
+
+    # the frame: large scale, with wrinkles, truth; the error against adding nothing
+    forehead = truth["wrinkle_mask"]
+    lo, hi = A[t][forehead].min(axis=0), A[t][forehead].max(axis=0)
+    bounds = [lo[0] - 5, hi[0] + 5, lo[1] - 5, hi[1] + 5]
+    size = np.linalg.norm(true, axis=1)
+    vmax = float(np.percentile(size[wrinkle], 99))
+    F = scan.faces
+    render_side_by_side(
+        [MeshPanel(A[t], F, None, "large scale (animate)"), MeshPanel(W[t], F, None, "with wrinkles"),
+         MeshPanel(truth["vertices"][t].astype(np.float64), F, None, "truth")],
+        pictures / "wrinkles_frame.png", title=f"Mocap frame {t}: the wrinkle layer", bounds=bounds)
+    render_side_by_side(
+        [MeshPanel(A[t], F, size, "error of adding nothing |G - L|"),
+         MeshPanel(W[t], F, error, "error with wrinkles |(W - A) - (G - L)|")],
+        pictures / "wrinkles_error.png", value_label="mm", vmin=0.0, vmax=vmax, bounds=bounds,
+        title=f"Mocap frame {t}: wrinkle displacement error against the truth")
+    seconds = time.perf_counter() - t0
+    summary = {"video_frames": done.n_video_frames, "ratio_to_adding_nothing": ratio,
+               "outside_wrinkle_mask_max_mm": outside, "timings": done.timings, "seconds": seconds}
+    lines = [f"wrinkle layer: {done.n_video_frames} video frames, 2 cameras, {scan.n_vertices} vertices",
+             f"  error over the wrinkles {ratio:.2f} of adding nothing (mocap frame {t}); "
+             f"outside them at most {outside:.3f} mm; {seconds:.0f} s with the footage rendered"]
+    return {"summary": summary, "lines": lines}
