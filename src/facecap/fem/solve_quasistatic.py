@@ -168,9 +168,9 @@ class QuasistaticSolver:
         convergence near a stable equilibrium. Where it is not (far from equilibrium,
         inverted or strongly compressed tetrahedra), the step uses the projected stiffness
         (every tetrahedron's ``d2 psi / dF2`` clamped to positive semi-definite), and the
-        exact one is tried again after two full steps. The projected stiffness alone
-        converges only linearly here, since at the equilibrium of a compressed, nearly
-        incompressible flesh many tetrahedra are projected.
+        exact one is tried again after the next full (alpha = 1) projected step. The
+        projected stiffness alone converges only linearly here, since at the equilibrium of
+        a compressed, nearly incompressible flesh many tetrahedra are projected.
         """
         model = self.model
         a = model._activations(activations)
@@ -203,7 +203,7 @@ class QuasistaticSolver:
                 assert state.element_stiffness is not None
                 step = self._newton_step(state.element_stiffness, r, timings)
                 if step is None:
-                    wait_before_exact = 2
+                    wait_before_exact = 1
             if step is None:
                 assert state.stress_derivative is not None
                 t = time.perf_counter()
