@@ -137,10 +137,14 @@ def wrinkles_on_surface(curves_px: Sequence[Any], cross_sections: Any, camera: A
             nearest = np.argmin(np.linalg.norm(pixels[None] - samples.centres_px[finite][:, None], axis=2), axis=1)
             order = np.argsort(arc[nearest], kind="stable")
             at = arc[nearest][order]
-            d = np.where(fit.has_wrinkle[finite], fit.depth[finite], 0.0)[order]
-            w = fit.width[finite][order]
+            found = fit.has_wrinkle[finite][order]
+            d = np.where(found, fit.depth[finite][order], 0.0)
             depth = np.interp(arc, at, _median3(d))
-            width = np.interp(arc, at, _median3(w))
+            if found.any():
+                # the width of a cross-section without a wrinkle means nothing (often pinned at the fit's
+                # bound): widths come from the detected ones only, or a shallow valley next to a
+                # non-detection would be interpolated wide
+                width = np.interp(arc, at[found], _median3(fit.width[finite][order][found]))
         if anchor is not None and len(anchor) > 2:
             depth = np.clip(depth - np.asarray(anchor[2]), 0.0, None)
         name = identities[i] if identities is not None else f"{camera.name}:{i}"
