@@ -110,7 +110,8 @@ def run_case(work: Path, name: str) -> dict:
         true = (G[4 * j] - L[4 * j]).astype(np.float64)
         ratio, _, outside = _metric(glob.frame(int(j))[0]["displacement"].astype(np.float64), true, mask)
         rows[int(j)]["global_ratio"], rows[int(j)]["global_synthesis_s"] = ratio, glob.last_seconds["synthesis_s"]
-        print(json.dumps({"case": name, "global": int(j), "ratio": ratio, "synthesis_s": glob.last_seconds["synthesis_s"],
+        print(json.dumps({"case": name, "global": int(j), "ratio": ratio,
+                          "synthesis_s": glob.last_seconds["synthesis_s"],
                           "regions_synthesis_s": rows[int(j)]["synthesis_s"]}), flush=True)
     return {"case": name, "tuned": name in TUNED, "track_s_per_camera_frame": track_s, "rows": rows,
             "n_vertices": int(L.shape[1])}
@@ -121,16 +122,12 @@ def speed_at(levels: int, seed: int = 0) -> dict:
     from facecap.synth.generate_performance import generate_performance
     from facecap.synth.ict_sample import load_ict_sample
     from facecap.synth.wrinkle_scan import subdivide_scan
-    from facecap.synth.wrinkles import WRINKLE_EXPRESSIONS, add_wrinkles, place_wrinkles
+    from facecap.synth.wrinkles import add_wrinkles, every_wrinkle_at_once, place_wrinkles
     from facecap.wrinkles import SurfaceWrinkle, synthesize_wrinkles
 
     sample = load_ict_sample()
-    names = list(sample.expression_names)
-    weights = np.zeros((2, len(names)))
-    for expression in WRINKLE_EXPRESSIONS.values():
-        for shape, weight in expression.items():
-            weights[1, names.index(shape)] += 0.6 * weight
-    case = generate_performance(n_frames=2, rate=50.0, curves=np.clip(weights, 0, 1), seed=seed, sample=sample)
+    weights = every_wrinkle_at_once(2, sample.expression_names, from_frame=1)
+    case = generate_performance(n_frames=2, rate=50.0, curves=weights, seed=seed, sample=sample)
     fine = subdivide_scan(case.scan, levels=levels)
     large = np.stack([fine.upsample @ case.truth_vertices[t].astype(np.float64) for t in range(2)]).astype(np.float32)
     curves = place_wrinkles(fine.mesh, sample, seed=seed)
@@ -182,7 +179,8 @@ def main() -> None:
         cs = np.median([x["cross_sections_s"] / 2 for x in r["rows"]])
         syn = np.median([x["synthesis_s"] for x in rows])
         print(f"| {r['case']} | {'tuned' if r['tuned'] else 'held out'} | {len(rows)} | {pooled:.3f} | "
-              f"{np.median(ratios):.3f} ({ratios.max():.3f}) | {outside:.3f} | {pool('no_shell_'):.3f} | {pool(''):.3f} | "
+              f"{np.median(ratios):.3f} ({ratios.max():.3f}) | {outside:.3f} | {pool('no_shell_'):.3f} | "
+              f"{pool(''):.3f} | "
               f"{pool('per_frame_'):.3f} | {np.median(r['track_s_per_camera_frame']):.2f} | {cs:.2f} | {syn:.2f} |")
 
 

@@ -315,20 +315,15 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     from .io.read_result import read_result
     from .report import MeshPanel, render_side_by_side
     from .synth.ict_sample import load_ict_sample
-    from .synth.wrinkles import WRINKLE_EXPRESSIONS
+    from .synth.wrinkles import every_wrinkle_at_once
     from .synth.write_footage_case import write_footage_case
     from .wrinkles import capture_wrinkles, fit_cross_sections, large_scale_in_mocap, wedge_intensity
     from .wrinkles.fit_cross_sections import DEFAULT_ROUNDING
 
     t0 = time.perf_counter()
     folder = stage / "wrinkles"
-    names = list(load_ict_sample().expression_names)
-    weights = np.zeros((9, len(names)))
-    for expression in WRINKLE_EXPRESSIONS.values():
-        for shape, weight in expression.items():
-            weights[3:, names.index(shape)] += 0.6 * weight
-    files = write_footage_case(folder / "inputs", n_frames=9, seed=2, curves=np.clip(weights, 0.0, 1.0),
-                               progress=progress)
+    files = write_footage_case(folder / "inputs", n_frames=9, seed=2,
+                               curves=every_wrinkle_at_once(9, load_ict_sample().expression_names), progress=progress)
     scan = read_mesh(files.scan)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FacecapWarning)  # head-band markers not in the map: expected
@@ -378,7 +373,8 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     valid = samples.valid[best]
     p = samples.p
     fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
-    ax.plot(p[valid], samples.intensity[best, valid] / fit.ambient[best], ".", ms=3, label="observed / unshadowed level")
+    ax.plot(p[valid], samples.intensity[best, valid] / fit.ambient[best], ".", ms=3,
+            label="observed / unshadowed level")
     model = wedge_intensity(p - fit.offset[best], fit.width[best], fit.depth[best], rounding=DEFAULT_ROUNDING)
     ax.plot(p, model, "-", label=f"eq. 6 fitted: w {fit.width[best]:.2f} mm, d {fit.depth[best]:.2f} mm")
     ax.set_xlabel("distance across the valley (mm)")

@@ -24,24 +24,16 @@ from facecap.errors import FacecapWarning, InputError
 from facecap.io import read_correspondence, read_markers, read_mesh
 from facecap.io.read_result import read_result
 from facecap.synth.ict_sample import load_ict_sample
-from facecap.synth.wrinkles import WRINKLE_EXPRESSIONS
+from facecap.synth.wrinkles import every_wrinkle_at_once
 from facecap.synth.write_footage_case import write_footage_case
 from facecap.wrinkles import capture_wrinkles
-
-
-def _curves(n_frames: int) -> np.ndarray:
-    names = list(load_ict_sample().expression_names)
-    W = np.zeros((n_frames, len(names)))
-    for expression in WRINKLE_EXPRESSIONS.values():
-        for shape, weight in expression.items():
-            W[3:, names.index(shape)] += 0.6 * weight
-    return np.clip(W, 0.0, 1.0)
 
 
 @pytest.fixture(scope="module")
 def animated_case(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     folder = tmp_path_factory.mktemp("wrinkle_case")
-    files = write_footage_case(folder / "case", n_frames=9, seed=2, curves=_curves(9))
+    curves = every_wrinkle_at_once(9, load_ict_sample().expression_names)
+    files = write_footage_case(folder / "case", n_frames=9, seed=2, curves=curves)
     scan = read_mesh(files.scan)
     with warnings.catch_warnings():  # the take's head-band markers are not in the skin map, and a notice says so
         warnings.simplefilter("ignore", FacecapWarning)

@@ -32,26 +32,17 @@ import pytest
 from facecap.cameras import RayCaster, read_camera_file, read_image
 from facecap.io import read_mesh
 from facecap.synth.ict_sample import load_ict_sample
-from facecap.synth.wrinkles import WRINKLE_EXPRESSIONS
+from facecap.synth.wrinkles import every_wrinkle_at_once
 from facecap.synth.write_footage_case import write_footage_case
 from facecap.wrinkles import fit_cross_sections
-
-
-def _all_wrinkles_curves(n_frames: int) -> np.ndarray:
-    """Expression weights: neutral at mocap frame 0, every wrinkle-making expression at once at 4."""
-    names = list(load_ict_sample().expression_names)
-    W = np.zeros((n_frames, len(names)))
-    for expression in WRINKLE_EXPRESSIONS.values():
-        for shape, weight in expression.items():
-            W[3:, names.index(shape)] += 0.6 * weight
-    return np.clip(W, 0.0, 1.0)
 
 
 @pytest.fixture(scope="module", params=[0, 1])
 def footage_case(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> tuple[int, Path]:
     seed = int(request.param)
     folder = tmp_path_factory.mktemp(f"footage_seed{seed}")
-    write_footage_case(folder, n_frames=5, seed=seed, curves=_all_wrinkles_curves(5))
+    curves = every_wrinkle_at_once(5, load_ict_sample().expression_names)
+    write_footage_case(folder, n_frames=5, seed=seed, curves=curves)
     return seed, folder
 
 

@@ -33,7 +33,7 @@ In the order a user meets them:
   scan fine enough to hold wrinkles; :func:`place_wrinkles`,
   :func:`add_wrinkles`, :func:`wrinkle_profile`, :func:`wrinkle_activation`,
   :class:`WrinkleCurves`, :class:`WrinkledPerformance`, :data:`WRINKLE_KINDS`,
-  :data:`INFLUENCE_WIDTHS`, :func:`wrinkle_expression_curves`,
+  :data:`INFLUENCE_WIDTHS`, :func:`wrinkle_expression_curves`, :func:`every_wrinkle_at_once`,
   :data:`WRINKLE_EXPRESSIONS` (``wrinkles.py``), the truth wrinkles;
   :func:`paint_wrinkles`, :class:`PaintedSkin`, :data:`PAINT_COLORS`,
   :data:`PAINT_HALF_WIDTH` (``wrinkle_paint.py``); :class:`FootageRenderer`,
@@ -67,7 +67,8 @@ from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_c
 from .write_synthetic_case import CaseFiles, write_planned_scans, write_synthetic_case
 from .wrinkle_scan import SubdividedScan, subdivide_scan
 from .wrinkles import (INFLUENCE_WIDTHS, WRINKLE_EXPRESSIONS, WRINKLE_KINDS, WrinkleCurves, WrinkledPerformance,
-                       add_wrinkles, place_wrinkles, wrinkle_activation, wrinkle_expression_curves, wrinkle_profile)
+                       add_wrinkles, every_wrinkle_at_once, place_wrinkles, wrinkle_activation,
+                       wrinkle_expression_curves, wrinkle_profile)
 from .wrinkle_paint import PAINT_COLORS, PAINT_HALF_WIDTH, PaintedSkin, paint_wrinkles
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from .write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, FootageFiles, stage_cameras, write_footage_case
@@ -118,6 +119,7 @@ __all__ = [
     "WRINKLE_KINDS",
     "INFLUENCE_WIDTHS",
     "wrinkle_expression_curves",
+    "every_wrinkle_at_once",
     "WRINKLE_EXPRESSIONS",
     "paint_wrinkles",
     "PaintedSkin",

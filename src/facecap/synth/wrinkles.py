@@ -25,7 +25,8 @@ from .generate_performance import vertex_normals_at
 from .ict_sample import IctSample
 
 __all__ = ["WrinkleCurves", "WrinkledPerformance", "WRINKLE_KINDS", "INFLUENCE_WIDTHS", "WRINKLE_EXPRESSIONS",
-           "wrinkle_profile", "place_wrinkles", "wrinkle_activation", "wrinkle_expression_curves", "add_wrinkles"]
+           "wrinkle_profile", "place_wrinkles", "wrinkle_activation", "wrinkle_expression_curves", "add_wrinkles",
+           "every_wrinkle_at_once"]
 
 WRINKLE_KINDS = ("forehead", "glabella", "crows_feet", "nasolabial")
 """The wrinkle families :func:`place_wrinkles` can draw."""
@@ -376,6 +377,27 @@ def wrinkle_expression_curves(n_frames: int, names: Sequence[str], *, rate: floa
         if at > t[-1]:
             break
     out[0] = 0.0
+    return np.clip(out, 0.0, 1.0)
+
+
+def every_wrinkle_at_once(n_frames: int, names: Sequence[str], *, from_frame: int = 3, weight: float = 0.6
+                          ) -> FloatArray:
+    """(T, len(names)) weights: neutral, then every :data:`WRINKLE_EXPRESSIONS` entry at once from ``from_frame``.
+
+    The short takes of the tests and the demo: every wrinkle formed in one video frame.
+
+    Examples
+    --------
+    >>> W = every_wrinkle_at_once(9, ["browInnerUp_L", "mouthSmile_L"])
+    >>> float(W[2].max()), bool(W[3:].min() > 0)
+    (0.0, True)
+    """
+    out = np.zeros((int(n_frames), len(names)))
+    index = {s: i for i, s in enumerate(names)}
+    for expression in WRINKLE_EXPRESSIONS.values():
+        for shape, gain in expression.items():
+            if shape in index:
+                out[from_frame:, index[shape]] += weight * gain
     return np.clip(out, 0.0, 1.0)
 
 

@@ -31,8 +31,9 @@ import scipy.sparse as sp
 from ..deform.factor_spd import SpdFactor
 from ..errors import InputError
 from ..typing import FloatArray, IntArray
+from ..validate import as_faces, as_vertices
 
-__all__ = ["DiscreteShell", "ShellMinimum", "minimize_shell", "STRETCH", "BEND", "AREA"]
+__all__ = ["DiscreteShell", "ShellMinimum", "minimize_shell"]
 
 STRETCH = 300.0
 """``k_e``: the paper's edge-length stiffness."""
@@ -107,12 +108,8 @@ class DiscreteShell:
 
     def __init__(self, rest: Any, faces: Any, *, stretch: float = STRETCH, bend: float = BEND, area: float = AREA,
                  length_mm: float = 1.0) -> None:
-        X = np.asarray(rest, dtype=np.float64)
-        F = np.asarray(faces, dtype=np.int64)
-        if X.ndim != 2 or X.shape[1] != 3 or not np.isfinite(X).all():
-            raise InputError(f"rest: expected finite (n, 3) positions, got shape {X.shape}")
-        if F.ndim != 2 or F.shape[1] != 3 or F.size == 0 or F.min() < 0 or F.max() >= len(X):
-            raise InputError(f"faces: expected (m, 3) triangles indexing {len(X)} vertices")
+        X = as_vertices(rest, name="rest")
+        F = as_faces(faces, len(X), name="faces")
         for name, value in (("stretch", stretch), ("bend", bend), ("area", area)):
             if not np.isfinite(value) or value < 0:
                 raise InputError(f"{name}: expected a finite constant >= 0, got {value!r}")

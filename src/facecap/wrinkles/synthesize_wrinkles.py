@@ -39,6 +39,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..typing import BoolArray, FloatArray, IntArray
+from ..validate import as_faces, as_vertices
 from .cross_section import cross_section
 from .discrete_shell import AREA, BEND, STRETCH, DiscreteShell, minimize_shell
 from .fit_cross_sections import DEFAULT_ROUNDING
@@ -171,12 +172,8 @@ def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[Surface
     InputError
         On bad arrays or options.
     """
-    V = np.asarray(large_scale, dtype=np.float64)
-    F = np.asarray(faces, dtype=np.int64)
-    if V.ndim != 2 or V.shape[1] != 3 or not np.isfinite(V).all():
-        raise InputError(f"large_scale: expected finite (n, 3) positions, got shape {V.shape}")
-    if F.ndim != 2 or F.shape[1] != 3 or F.size == 0 or F.min() < 0 or F.max() >= len(V):
-        raise InputError(f"faces: expected (f, 3) triangles indexing {len(V)} vertices")
+    V = as_vertices(large_scale, name="large_scale")
+    F = as_faces(faces, len(V), name="faces")
     if motion not in ("normal", "free"):
         raise InputError(f"motion: expected 'normal' or 'free', got {motion!r}")
     if not np.isfinite(influence_widths) or influence_widths <= 1.0:
