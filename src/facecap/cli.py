@@ -545,15 +545,21 @@ def _region_mask(path: str, n_vertices: int) -> "object":
 
     source = Path(path)
     if source.suffix.lower() == ".npy":
-        mask = np.load(source, allow_pickle=False)
+        try:
+            mask = np.load(source, allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise FacecapError(f"{path}: not a NumPy array file ({exc})") from None
         if mask.dtype != bool or mask.shape != (n_vertices,):
             raise FacecapError(f"{path}: expected a bool array of the scan's {n_vertices} vertices, "
                                f"got {mask.dtype} {mask.shape}")
         return mask
     try:
-        indices = np.asarray(json.loads(source.read_text()), dtype=np.int64)
-    except (json.JSONDecodeError, TypeError, ValueError):
+        content = json.loads(source.read_text())
+    except json.JSONDecodeError:
         raise FacecapError(f"{path}: expected a JSON list of vertex indices") from None
+    if not isinstance(content, list) or not all(isinstance(i, int) and not isinstance(i, bool) for i in content):
+        raise FacecapError(f"{path}: expected a JSON list of vertex indices (integers)")
+    indices = np.asarray(content, dtype=np.int64)
     if indices.ndim != 1 or indices.size == 0 or indices.min() < 0 or indices.max() >= n_vertices:
         raise FacecapError(f"{path}: expected vertex indices in 0..{n_vertices - 1}")
     mask = np.zeros(n_vertices, dtype=bool)
@@ -591,12 +597,15 @@ def _cmd_build_anatomy(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from .anatomy import build_anatomy, render_anatomy_layout
+    from .io._atomic import atomic_folder
     from .io.read_mesh import read_mesh
 
     scan = read_mesh(args.scan, unit=args.scan_units)
     anatomy = build_anatomy(scan, landmarks=args.landmarks, n_tets=args.tets, progress=not args.quiet)
-    anatomy.save(args.out)
-    render_anatomy_layout(anatomy, Path(args.out) / "layout.png")
+    # the model and its picture appear together or not at all
+    with atomic_folder(args.out, marker_file="anatomy.json") as stage:
+        render_anatomy_layout(anatomy, Path(stage) / "layout.png")
+        anatomy.save(stage)
     if not args.quiet:
         print(f"wrote {args.out}: {len(anatomy.tets)} tetrahedra, {len(anatomy.muscle_names)} muscles")
     return 0

@@ -166,9 +166,9 @@ def test_depth_edits_and_a_drawn_wrinkle(animated_case: tuple[Path, Path], wrink
     deepest_vertex = A[0][np.argmax(depth)]
     seen = left.project(deepest_vertex @ M[:3, :3].T + M[:3, 3]).pixels
     assert np.min(np.linalg.norm(pixels - seen, axis=1)) < 6.0
-    drawn = [w for w in json.loads((out / "wrinkles.json").read_text())["frames"][0]["wrinkles"]
-             if w["wrinkle"] == "drawn"]
-    assert len(drawn) == 1 and max(drawn[0]["depth_mm"]) == pytest.approx(0.5, abs=1e-4)
+    drawn = [w for w in json.loads((out / "wrinkles.json").read_text())["frames"][0]["wrinkles"] if w["drawn"]]
+    assert len(drawn) == 1 and drawn[0]["wrinkle"] == "cam_left:drawn_0"
+    assert max(drawn[0]["depth_mm"]) == pytest.approx(0.5, abs=1e-4)
 
 
 def test_bad_edit_files_are_refused_naming_the_entry(tmp_path: Path) -> None:

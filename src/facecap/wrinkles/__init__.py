@@ -18,7 +18,7 @@
 - :class:`DiscreteShell`, :func:`minimize_shell` (``discrete_shell.py``): the nonlinear
   discrete shell of eq. 8 and its damped Gauss-Newton minimiser.
 - :class:`SurfaceWrinkle`, :func:`wrinkles_on_surface`, :func:`merge_camera_wrinkles`,
-  :func:`anchor_curves` (``surface_wrinkles.py``): valley splines cast onto the animated face, the cameras merged (5.3).
+  :func:`anchor_curves`, :func:`identity_parts`, :func:`names_wrinkle` (``surface_wrinkles.py``): valley splines cast onto the animated face, the cameras merged (5.3).
 - :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`
   (``synthesize_wrinkles.py``): valleys imposed and bulges by the shell, region by region (5.3).
 - :func:`capture_wrinkles`, :class:`WrinkleCapture`, :class:`WrinkleFrameStage`,
@@ -63,7 +63,14 @@ from .remove_wrinkles import (
     remove_wrinkles_arrays,
 )
 from .discrete_shell import DiscreteShell, ShellMinimum, minimize_shell
-from .surface_wrinkles import SurfaceWrinkle, anchor_curves, merge_camera_wrinkles, wrinkles_on_surface
+from .surface_wrinkles import (
+    SurfaceWrinkle,
+    anchor_curves,
+    identity_parts,
+    merge_camera_wrinkles,
+    names_wrinkle,
+    wrinkles_on_surface,
+)
 from .synthesize_wrinkles import WrinkleSynthesis, smoothed_normals, synthesize_wrinkles
 from .capture_wrinkles import (
     WrinkleCapture,
@@ -106,6 +113,8 @@ __all__ = [
     "wrinkles_on_surface",
     "merge_camera_wrinkles",
     "anchor_curves",
+    "identity_parts",
+    "names_wrinkle",
     "synthesize_wrinkles",
     "WrinkleSynthesis",
     "smoothed_normals",

@@ -24,13 +24,14 @@ import os
 import shutil
 import tempfile
 import time
+import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FacecapWarning, InputError
 from ..typing import FloatArray
 
 __all__ = ["WrinkleFrameStage", "WrinkleCapture", "capture_wrinkles", "large_scale_in_mocap", "first_frame_anchors"]
@@ -39,7 +40,7 @@ CURVE_SAMPLES = 48
 """Points per merged valley line in the stage's fixed-size output (and in ``wrinkles.json``)."""
 
 
-def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.ndarray], frame: int) -> FloatArray:
+def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.ndarray], frame: float) -> FloatArray:
     """A frame of the face carried into the mocap frame: ``M_t c^-1(x)`` (5.3's inverse correspondence map).
 
     Parameters
@@ -49,8 +50,9 @@ def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.nda
     correspondence : mapping
         ``correspondence.npz`` of the result (``mocap_points``, ``face_points``, optional
         ``mocap_from_stabilized``).
-    frame : int
-        The mocap frame (selects the head motion of a stabilised take).
+    frame : float
+        The mocap time in frames (selects the head motion of a stabilised take; between two frames
+        the two motions are blended, the rotation projected back onto the rotations).
 
     Returns
     -------
@@ -65,8 +67,14 @@ def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.nda
                            np.asarray(correspondence["mocap_points"], np.float64))
     Y = back(X)
     if "mocap_from_stabilized" in correspondence:
-        M = np.asarray(correspondence["mocap_from_stabilized"], np.float64)[frame]
-        Y = Y @ M[:3, :3].T + M[:3, 3]
+        motion = np.asarray(correspondence["mocap_from_stabilized"], np.float64)
+        position = float(np.clip(frame, 0, len(motion) - 1))
+        lo = int(np.floor(position))
+        hi, weight = min(lo + 1, len(motion) - 1), position - lo
+        M = (1.0 - weight) * motion[lo] + weight * motion[hi]
+        u, _, vt = np.linalg.svd(M[:3, :3])
+        R = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt  # the nearest rotation to the blend
+        Y = Y @ R.T + M[:3, 3]
     return Y
 
 
@@ -165,8 +173,8 @@ class WrinkleFrameStage:
         result, correspondence = self._result()
         faces = result.mesh.faces
         A = self.large_scale(video_frame)
-        mocap_frame = int(round(float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))))
-        caster = RayCaster(large_scale_in_mocap(A, correspondence, mocap_frame), faces)
+        at = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
+        caster = RayCaster(large_scale_in_mocap(A, correspondence, at), faces)
         seconds = {"large_scale_and_ray_caster_s": time.perf_counter() - clock, "cross_sections_s": 0.0}
         views, residuals = [], {}
         for camera, path, track in zip(self.cameras, self.footage, self.tracks):
@@ -244,8 +252,8 @@ def first_frame_anchors(stage: WrinkleFrameStage) -> dict[str, Any]:
     with np.load(Path(stage.result_dir) / "correspondence.npz") as data:
         correspondence = {k: data[k] for k in data.files}
     A = stage.large_scale(0)
-    frame = int(round(float(np.clip(stage.mocap_frames[0], 0, result.n_frames - 1))))
-    caster = RayCaster(large_scale_in_mocap(A, correspondence, frame), result.mesh.faces)
+    at = float(np.clip(stage.mocap_frames[0], 0, result.n_frames - 1))
+    caster = RayCaster(large_scale_in_mocap(A, correspondence, at), result.mesh.faces)
     anchors: dict[str, Any] = {}
     for camera, path, track in zip(stage.cameras, stage.footage, stage.tracks):
         curves = track[0]
@@ -315,7 +323,8 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     first_mocap_frame : float, default 0
         The mocap frame of video frame 0.
     depth_scale : float or mapping of str to float, default 1
-        Scale every wrinkle's depth, or chosen ones by identity ('<camera>:<id>', as in ``wrinkles.json``).
+        Scale every wrinkle's depth, or chosen ones by identity ('<camera>:<id>', as in ``wrinkles.json``;
+        a merged wrinkle by any camera's part).
     scheduler : str or None, default 'synchronous'
         The frame runner's (:func:`~facecap.runner.run_frames`): ``'synchronous'`` in this process, None for a
         local cluster of ``n_workers`` processes, or a scheduler address.
@@ -345,8 +354,8 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     ------
     InputError
         A result without its correspondence map, a camera count that does not match the footage or masks,
-        footage of another size than its calibration, footage that does not cover the take, a mask without a
-        paint, a camera that sees no wrinkle at all.
+        a camera name holding '+' or ':', footage of another size than its calibration, footage that does not
+        cover the take, a mask without a paint, no camera seeing any wrinkle in any frame.
     """
     from ..cameras import open_footage, read_image, synchronize
     from ..io.read_result import read_result
@@ -367,6 +376,10 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
                          f"{len(footage)} footage, {len(masks)} masks")
     if video_rate_hz is None:
         raise InputError("video_rate_hz: the footage's rate is needed (the camera file's footage.rate_hz)")
+    for camera in cameras:
+        if "+" in camera.name or ":" in camera.name:
+            raise InputError(f"camera {camera.name!r}: a name with '+' or ':' cannot name wrinkles "
+                             "('<camera>:<id>', joined by '+' when merged); rename it in the calibration")
     if edits is not None and not hasattr(edits, "surface_wrinkles"):
         from .wrinkle_edits import read_wrinkle_edits
 
@@ -389,6 +402,21 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     n_slots = sum(max((len(frame) for frame in track), default=0) for track in tracks)
     opts = dict(options or {})
     opts["depth_scale"] = dict(depth_scale) if isinstance(depth_scale, Mapping) else float(depth_scale)
+    if opts.get("backend", "auto") == "auto":
+        from ..deform.factor_spd import available_backends
+
+        # one factorisation for every chunk, recorded with the run: a resume or a re-run task on another
+        # worker then solves the same way
+        opts["backend"] = available_backends()[0]
+    if edits is not None:
+        covered = sync.mocap_frame(np.arange(n_video))
+        ranges = [e.frames for e in edits.depth if e.frames is not None] + \
+                 [d.frames for d in edits.add if d.frames is not None]
+        for first, last in ranges:
+            if not ((covered >= first) & (covered <= last)).any():
+                warnings.warn(f"edits: mocap frames {first:g}-{last:g} hold no video frame, so the edit does "
+                              "nothing (edits apply at video frames and blend over the interval after)",
+                              FacecapWarning, stacklevel=2)
     stage = WrinkleFrameStage(str(result_dir.resolve()), cameras, footage, [track[:n_video] for track in tracks],
                               sync.mocap_frame(np.arange(n_video)), max(n_slots, 1) + len(getattr(edits, "add", ())),
                               opts, edits=edits)
@@ -445,11 +473,15 @@ def _wrinkles_document(run: Any, stage: WrinkleFrameStage, sync: Any) -> dict[st
         splines = {name: {str(i): np.round(np.asarray(p), 2).tolist() for i, _, p in stage.tracks[k][j]}
                    for k, name in enumerate(names)}
         wrinkles = []
+        # the drawn wrinkles follow the tracked ones, in the edit file's order (WrinkleFrameStage.frame)
+        drawn = iter([] if stage.edits is None else
+                     [f"{d.camera}:{d.name}" for d in stage.edits.drawn_at(float(stage.mocap_frames[j]))])
         for row in np.flatnonzero(np.isfinite(curves[j, :, 0, 0])):
             seen = {names[k]: int(s) for k, s in enumerate(sources[j, row]) if s >= 0}
             c = curves[j, row]
             wrinkles.append({
-                "wrinkle": "+".join(f"{cam}:{i}" for cam, i in seen.items()) if seen else "drawn",
+                "wrinkle": "+".join(sorted(f"{cam}:{i}" for cam, i in seen.items())) if seen else next(drawn),
+                "drawn": not seen,
                 "color": int(colors[j, row]) if colors[j, row] >= 0 else None,
                 "cameras": seen, "splines_px": {cam: splines[cam][str(i)] for cam, i in seen.items()},
                 "points_mm": np.round(c[:, :3], 4).tolist(), "width_mm": np.round(c[:, 3], 4).tolist(),

@@ -64,7 +64,7 @@ def _interior_edges(faces: IntArray) -> tuple[IntArray, IntArray, IntArray]:
 
 
 def _dihedral(X: FloatArray, hinges: IntArray) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-    """Signed dihedral angles (0 for a flat hinge, positive when it folds towards its normals' side).
+    """Signed dihedral angles (0 for a flat hinge; negative when the wings fold towards the normals' side).
 
     Returns the angle, the edge vector, and the unnormalised normals of the two triangles.
     """
@@ -222,7 +222,9 @@ class ShellMinimum(NamedTuple):
     initial_energy : float
     iterations : int
     converged : bool
-        The last step moved no vertex more than ``tolerance_mm``.
+        The last step moved no vertex more than ``tolerance_mm``, or lowered the energy by less than
+        ``relative_decrease`` of it, or no step at any damping lowered it (a stall: a minimum to round-off
+        or a direction the Gauss-Newton model cannot see). False: ``iterations`` ran out.
     """
 
     vertices: FloatArray

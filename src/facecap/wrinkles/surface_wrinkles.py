@@ -17,7 +17,8 @@ import numpy as np
 
 from ..typing import FloatArray
 
-__all__ = ["SurfaceWrinkle", "wrinkles_on_surface", "anchor_curves", "merge_camera_wrinkles"]
+__all__ = ["SurfaceWrinkle", "wrinkles_on_surface", "anchor_curves", "merge_camera_wrinkles", "identity_parts",
+           "names_wrinkle"]
 
 SNAP_MM = 2.5
 """Two cameras' curves of one paint closer than this (mean, over their overlap) are one wrinkle."""
@@ -29,8 +30,9 @@ class SurfaceWrinkle(NamedTuple):
     Attributes
     ----------
     wrinkle : str
-        Identity, stable over the take: ``'<camera>:<tracker id>'``, or the
-        cameras' identities joined by ``'+'`` once merged.
+        Identity: ``'<camera>:<tracker id>'``, or the cameras' identities, sorted, joined by ``'+'``
+        once merged (which cameras see a wrinkle may change from frame to frame: match a part,
+        :func:`names_wrinkle`).
     color : int
         Paint index.
     points : (k, 3) float64 array, mm
@@ -55,6 +57,25 @@ class SurfaceWrinkle(NamedTuple):
     def arc_length(self) -> FloatArray:
         """Arc length from the first point (k,), mm."""
         return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(self.points, axis=0), axis=1))])
+
+
+def identity_parts(identity: str) -> list[str]:
+    """The per-camera identities of a (merged) wrinkle: ``'cam_left:2+cam_right:1'`` -> both."""
+    return identity.split("+")
+
+
+def names_wrinkle(identity: str, names: Any) -> bool:
+    """Whether ``names`` (a collection of identities) names this wrinkle: its merged name or any camera's part."""
+    return identity in names or any(part in names for part in identity_parts(identity))
+
+
+def _merged_identity(a: str, b: str) -> str:
+    """One name for a wrinkle several cameras saw, whichever saw it best: the parts sorted."""
+    return "+".join(sorted(set(identity_parts(a)) | set(identity_parts(b))))
+
+
+def _cameras_of(identity: str) -> set[str]:
+    return {part.rsplit(":", 1)[0] for part in identity_parts(identity)}
 
 
 def _median3(x: FloatArray) -> FloatArray:
@@ -190,12 +211,16 @@ def _blend_pair(base: SurfaceWrinkle, other: SurfaceWrinkle, snap_mm: float) -> 
     # where base's points lie on the other's line: blend them there with the other's values
     dist_b, foot_b = _nearest_on_polyline(base.points, other.points)
     arc_o = other.arc_length
-    over_b = dist_b < snap_mm
+    # base points beside the other line, not past its ends (there the nearest point is its end, which would
+    # pull them back along the line)
+    over_b = (dist_b < snap_mm) & (foot_b > 1e-9) & (foot_b < arc_o[-1] - 1e-9)
     P = base.points.copy()
     W, D, Q = base.width.copy(), base.depth.copy(), base.quality.copy()
     if over_b.any():
         oq = np.interp(foot_b[over_b], arc_o, other.quality)
-        weight_o = oq / np.maximum(oq + Q[over_b], 1e-12)
+        # the other's weight eases in over snap_mm from its ends: no step where its line stops
+        ease = np.clip(np.minimum(foot_b[over_b], arc_o[-1] - foot_b[over_b]) / snap_mm, 0.0, 1.0)
+        weight_o = ease * oq / np.maximum(oq + Q[over_b], 1e-12)
         o_point = np.stack([np.interp(foot_b[over_b], arc_o, other.points[:, c]) for c in range(3)], axis=1)
         P[over_b] += weight_o[:, None] * (o_point - P[over_b])
         W[over_b] += weight_o * (np.interp(foot_b[over_b], arc_o, other.width) - W[over_b])
@@ -204,9 +229,11 @@ def _blend_pair(base: SurfaceWrinkle, other: SurfaceWrinkle, snap_mm: float) -> 
     # the other's points beyond base's ends (foot clamped to an end, and off the line): snapped on by the
     # offset between base's end and the other's nearest point there
     parts_before, parts_after = [], []
-    off = dist >= snap_mm
-    before = off & (foot <= 1e-9)
-    after = off & (foot >= arc_b[-1] - 1e-9)
+    # beyond an end: the foot clamps to it and the point lies past it along the line's direction there
+    out_start = base.points[0] - base.points[1]
+    out_end = base.points[-1] - base.points[-2]
+    before = (foot <= 1e-9) & ((other.points - base.points[0]) @ out_start > 0)
+    after = (foot >= arc_b[-1] - 1e-9) & ((other.points - base.points[-1]) @ out_end > 0)
     for sel, end, parts in ((before, 0, parts_before), (after, -1, parts_after)):
         if not sel.any():
             continue
@@ -217,7 +244,7 @@ def _blend_pair(base: SurfaceWrinkle, other: SurfaceWrinkle, snap_mm: float) -> 
         idx = idx[np.argsort(np.linalg.norm(other.points[idx] - other.points[j], axis=1))]
         parts.append((other.points[idx] + shift, other.width[idx], other.depth[idx], other.quality[idx]))
     pieces = [(p[::-1], w[::-1], d[::-1], q[::-1]) for p, w, d, q in parts_before] + [(P, W, D, Q)] + parts_after
-    return SurfaceWrinkle(f"{base.wrinkle}+{other.wrinkle}", base.color,
+    return SurfaceWrinkle(_merged_identity(base.wrinkle, other.wrinkle), base.color,
                           np.concatenate([p[0] for p in pieces]), np.concatenate([p[1] for p in pieces]),
                           np.concatenate([p[2] for p in pieces]), np.concatenate([p[3] for p in pieces]))
 
@@ -245,7 +272,7 @@ def merge_camera_wrinkles(views: Sequence[Sequence[SurfaceWrinkle]], *, snap_mm:
         for curve in view:
             best, best_share = -1, 0.0
             for j, have in enumerate(merged):
-                if have.color != curve.color or curve.wrinkle.split(":")[0] in have.wrinkle:
+                if have.color != curve.color or _cameras_of(curve.wrinkle) & _cameras_of(have.wrinkle):
                     continue
                 d_new, _ = _nearest_on_polyline(curve.points, have.points)
                 d_have, _ = _nearest_on_polyline(have.points, curve.points)

@@ -43,7 +43,7 @@ from ..validate import as_faces, as_vertices
 from .cross_section import cross_section
 from .discrete_shell import AREA, BEND, STRETCH, DiscreteShell, minimize_shell
 from .fit_cross_sections import DEFAULT_ROUNDING
-from .surface_wrinkles import SurfaceWrinkle, _nearest_on_polyline
+from .surface_wrinkles import SurfaceWrinkle, _nearest_on_polyline, identity_parts
 
 __all__ = ["WrinkleSynthesis", "synthesize_wrinkles", "smoothed_normals"]
 
@@ -119,10 +119,16 @@ def smoothed_normals(V: Any, F: Any, *, iterations: int = 3, vertices: Any = Non
 
 
 def _scale_for(wrinkle: SurfaceWrinkle, depth_scale: Any) -> float:
-    """The depth factor for a wrinkle: a number for all, or a mapping by identity (missing: 1)."""
-    if isinstance(depth_scale, Mapping):
-        return float(depth_scale.get(wrinkle.wrinkle, 1.0))
-    return float(depth_scale)
+    """The depth factor for a wrinkle: a number for all, or a mapping by identity (missing: 1).
+
+    A mapping names the wrinkle by its full (merged) identity or by any camera's part of it; the
+    full name wins, and parts' factors multiply.
+    """
+    if not isinstance(depth_scale, Mapping):
+        return float(depth_scale)
+    if wrinkle.wrinkle in depth_scale:
+        return float(depth_scale[wrinkle.wrinkle])
+    return float(np.prod([float(depth_scale[p]) for p in identity_parts(wrinkle.wrinkle) if p in depth_scale]))
 
 
 def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[SurfaceWrinkle], *,
@@ -145,7 +151,8 @@ def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[Surface
         The cross-section's rounded bottom (:func:`~facecap.wrinkles.cross_section`); use the value the
         cross-sections were fitted with.
     depth_scale : float or mapping of str to float, default 1
-        Scale every valley's depth, or chosen ones by identity (section 6.2's editing).
+        Scale every valley's depth, or chosen ones by identity, full or any camera's part
+        (section 6.2's editing).
     stretch, bend, area : float, default 300, 2, 30,000
         The shell's constants (:class:`~facecap.wrinkles.discrete_shell.DiscreteShell`), the paper's.
     length_mm : float, default :data:`SHELL_LENGTH_MM`
@@ -234,6 +241,10 @@ def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[Surface
             in_region = region == k
             # the region's triangles and one ring of fixed triangles round it (its boundary's curvature)
             sub_faces = F[in_region[F].any(axis=1)]
+            # a scan's zero-area triangles have no rest shape for the shell to keep: left out of its terms
+            doubled_area = np.linalg.norm(np.cross(V[sub_faces[:, 1]] - V[sub_faces[:, 0]],
+                                                   V[sub_faces[:, 2]] - V[sub_faces[:, 0]]), axis=1)
+            sub_faces = sub_faces[doubled_area > 1e-10 * max(float(doubled_area.max()), 1e-300)]
             used = np.unique(sub_faces)
             local = np.full(n, -1, dtype=np.int64)
             local[used] = np.arange(used.size)

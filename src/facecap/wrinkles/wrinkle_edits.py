@@ -1,6 +1,7 @@
 """Wrinkle editing (Bickel et al. 2007, 6.2): deeper or shallower wrinkles, and wrinkles drawn by hand.
 
-An edit file is JSON (all frames are mocap frames of the take, inclusive ranges)::
+An edit file is JSON (frames are mocap frames of the take, inclusive ranges; an edit applies at the video
+frames in its range and, as every wrinkle, blends linearly over the video interval after them)::
 
     {
       "depth": [
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 import xml.etree.ElementTree as ElementTree
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -34,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FacecapWarning, InputError
 from ..typing import FloatArray
 
 __all__ = ["WrinkleEdits", "DrawnWrinkle", "DepthEdit", "read_wrinkle_edits", "svg_path_points"]
@@ -72,7 +74,9 @@ class DepthEdit:
     def applies(self, wrinkle: str, mocap_frame: float) -> bool:
         if self.frames is not None and not self.frames[0] <= mocap_frame <= self.frames[1]:
             return False
-        return self.wrinkles is None or any(part in self.wrinkles for part in wrinkle.split("+"))
+        from .surface_wrinkles import names_wrinkle
+
+        return self.wrinkles is None or names_wrinkle(wrinkle, self.wrinkles)
 
 
 @dataclass(frozen=True)
@@ -130,8 +134,11 @@ class WrinkleEdits:
                                  f"{', '.join(by_name)}")
             hits = caster.cast_pixels(by_name[drawn.camera], drawn.curve_px)
             if hits.hit.sum() < 2:
-                raise InputError(f"drawn wrinkle {drawn.name!r}: its curve does not lie on the face in "
-                                 f"camera {drawn.camera!r} at mocap frame {mocap_frame:g}")
+                # the head may turn away for a few frames of a long range: those frames go without it
+                warnings.warn(f"drawn wrinkle {drawn.name!r}: its curve misses the face in camera "
+                              f"{drawn.camera!r} at mocap frame {mocap_frame:g}; left out there", FacecapWarning,
+                              stacklevel=2)
+                continue
             tri, bary = hits.triangle[hits.hit], hits.barycentric[hits.hit]
             points = np.einsum("kj,kjc->kc", bary, V[F[tri]])
             arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
