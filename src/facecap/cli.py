@@ -10,7 +10,7 @@ import argparse
 import json
 import sys
 import warnings
-from typing import Sequence
+from typing import Any, Sequence
 
 
 from . import __version__
@@ -537,8 +537,8 @@ def _add_remove_wrinkles(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_remove_wrinkles)
 
 
-def _region_mask(path: str, n_vertices: int) -> "object":
-    """A vertex mask from a JSON list of indices or a .npy boolean array."""
+def _region_mask(path: str, n_vertices: int) -> Any:
+    """A (n_vertices,) bool vertex mask from a JSON list of indices or a .npy boolean array."""
     from pathlib import Path
 
     import numpy as np

@@ -41,7 +41,9 @@ def test_valleys_alone_are_the_cross_section_along_the_normal() -> None:
     expected = cross_section(p[inside], 2.0, 0.5, rounding=2.0)
     assert np.allclose(found.vertices[inside, 2], expected, atol=1e-12)
     assert np.array_equal(found.vertices[:, :2], V[:, :2])  # offsets along the normal only
-    assert np.array_equal(found.valley, (p < 2.0) & (np.linalg.norm(found.vertices - V, axis=1) > 0) | found.valley)
+    # the valley is every vertex within a half-width of the line (round past its ends), and nothing else
+    to_line = np.hypot(np.clip(np.abs(V[:, 0]) - 8.0, 0.0, None), V[:, 1])
+    assert np.array_equal(found.valley, to_line < 2.0)
     assert found.vertices[inside, 2].min() == pytest.approx(-0.5, abs=1e-12)  # the vertex on the line
     assert np.array_equal(found.vertices[~found.valley], V[~found.valley])
 

@@ -127,8 +127,8 @@ class WrinkleFrameStage:
         self.edits = edits
 
     def __getstate__(self) -> dict[str, Any]:
-        # the opened result is a per-process cache, not part of the stage
-        return {k: v for k, v in self.__dict__.items() if k != "_opened"}
+        # the opened result and footage are a per-process cache, not part of the stage
+        return {k: v for k, v in self.__dict__.items() if k not in ("_opened", "_clips")}
 
     def _result(self) -> tuple[Any, dict[str, np.ndarray]]:
         """The result folder and its correspondence map, opened once per process."""
@@ -140,6 +140,15 @@ class WrinkleFrameStage:
                 correspondence = {k: data[k] for k in data.files}
             opened = self._opened = (read_result(self.result_dir), correspondence)
         return opened
+
+    def _image(self, camera_index: int, video_frame: int) -> np.ndarray:
+        """A footage frame; each footage is opened once per process (a video is not re-opened per frame)."""
+        from ..cameras import open_footage
+
+        clips = self.__dict__.setdefault("_clips", {})
+        if camera_index not in clips:
+            clips[camera_index] = open_footage(self.footage[camera_index])
+        return clips[camera_index].frame(video_frame)
 
     def parameters(self) -> dict[str, Any]:
         """What the frames depend on (the runner refuses to resume a run with other values)."""
@@ -162,51 +171,67 @@ class WrinkleFrameStage:
         weight = position - lo
         return block[0] if hi == lo or weight == 0 else (1 - weight) * block[0] + weight * block[-1]
 
-    def frame(self, video_frame: int) -> tuple[dict[str, np.ndarray], list[Any]]:
-        """One video frame: the wrinkle displacement and the merged valley lines."""
-        from ..cameras import RayCaster, open_footage
-        from .fit_cross_sections import fit_cross_sections
-        from .surface_wrinkles import merge_camera_wrinkles, wrinkles_on_surface
-        from .synthesize_wrinkles import synthesize_wrinkles
+    def geometry(self, video_frame: int) -> tuple[FloatArray, Any]:
+        """The large scale at a video frame (face frame, mm) and its ray caster in the mocap frame."""
+        from ..cameras import RayCaster
 
-        clock = time.perf_counter()
         result, correspondence = self._result()
-        faces = result.mesh.faces
         A = self.large_scale(video_frame)
         at = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
-        caster = RayCaster(large_scale_in_mocap(A, correspondence, at), faces)
-        seconds = {"large_scale_and_ray_caster_s": time.perf_counter() - clock, "cross_sections_s": 0.0}
-        views, residuals = [], {}
-        for camera, path, track in zip(self.cameras, self.footage, self.tracks):
+        return A, RayCaster(large_scale_in_mocap(A, correspondence, at), result.mesh.faces)
+
+    def camera_views(self, video_frame: int, A: FloatArray, caster: Any, anchors: Mapping[str, Any]
+                     ) -> tuple[list[list[Any]], dict[str, float], float]:
+        """Each camera's cross-sections at a frame and its lines on the face.
+
+        Returns the per-camera :class:`~facecap.wrinkles.SurfaceWrinkle` lists, the mean fit residual per
+        wrinkle identity, and the seconds spent fitting cross-sections.
+        """
+        from .fit_cross_sections import fit_cross_sections
+        from .surface_wrinkles import wrinkles_on_surface
+
+        faces = self._result()[0].mesh.faces
+        views: list[list[Any]] = []
+        residuals: dict[str, float] = {}
+        seconds = 0.0
+        for k, (camera, track) in enumerate(zip(self.cameras, self.tracks)):
             curves = track[video_frame]
             if not curves:
                 views.append([])
                 continue
-            with open_footage(path) as footage:
-                image = footage.frame(video_frame)
             polylines = [np.asarray(p, dtype=np.float64) for _, _, p in curves]
+            image = self._image(k, video_frame)
             clock = time.perf_counter()
             sections = fit_cross_sections(image, polylines, camera, caster)
-            seconds["cross_sections_s"] += time.perf_counter() - clock
-            for k, (identity, _, _) in enumerate(curves):
-                mine = sections.samples.curve == k
-                rms = sections.fit.rms[mine]
-                residuals[f"{camera.name}:{identity}"] = float(rms[np.isfinite(rms)].mean()) \
-                    if np.isfinite(rms).any() else float("nan")
+            seconds += time.perf_counter() - clock
             names = [f"{camera.name}:{i}" for i, _, _ in curves]
+            for j, name in enumerate(names):
+                rms = sections.fit.rms[sections.samples.curve == j]
+                residuals[name] = float(rms[np.isfinite(rms)].mean()) if np.isfinite(rms).any() else float("nan")
             views.append(wrinkles_on_surface(polylines, sections, camera, caster, A, faces, identities=names,
                                              colors=[c for _, c, _ in curves],
-                                             anchors=[self.anchors.get(name) for name in names]))
+                                             anchors=[anchors.get(name) for name in names]))
+        return views, residuals, seconds
+
+    def frame(self, video_frame: int) -> tuple[dict[str, np.ndarray], list[Any]]:
+        """One video frame: the wrinkle displacement and the merged valley lines."""
+        from .surface_wrinkles import identity_parts, merge_camera_wrinkles
+        from .synthesize_wrinkles import _scale_for, synthesize_wrinkles
+
+        clock = time.perf_counter()
+        faces = self._result()[0].mesh.faces
+        A, caster = self.geometry(video_frame)
+        seconds = {"large_scale_and_ray_caster_s": time.perf_counter() - clock}
+        views, residuals, seconds["cross_sections_s"] = self.camera_views(video_frame, A, caster, self.anchors)
         clock = time.perf_counter()
         merged = merge_camera_wrinkles(views)
         options = dict(self.options)
         if self.edits is not None:
             at = float(self.mocap_frames[video_frame])
             merged += self.edits.surface_wrinkles(at, self.cameras, caster, A, faces)
-            base = options.get("depth_scale", 1.0)
             edited = self.edits.scales([w.wrinkle for w in merged], at)
-            options["depth_scale"] = {name: scale * (base.get(name, 1.0) if isinstance(base, Mapping) else float(base))
-                                      for name, scale in edited.items()}
+            base = options.get("depth_scale", 1.0)
+            options["depth_scale"] = {w.wrinkle: edited[w.wrinkle] * _scale_for(w, base) for w in merged}
         synthesis = synthesize_wrinkles(A, faces, merged, **options)
         seconds["synthesis_s"] = time.perf_counter() - clock
         self.last_seconds = seconds  # for benchmarks; never part of the chunk (its bytes must not vary)
@@ -219,7 +244,7 @@ class WrinkleFrameStage:
             P, (w, d) = _resample(wrinkle.points, [wrinkle.width, wrinkle.depth], CURVE_SAMPLES)
             slots[row] = np.column_stack([P, w, d])
             colors[row] = wrinkle.color
-            parts = wrinkle.wrinkle.split("+")
+            parts = identity_parts(wrinkle.wrinkle)
             for part in parts:
                 cam, identity = part.rsplit(":", 1)
                 if identity.isdigit():  # a drawn wrinkle has a name, no tracker id
@@ -243,36 +268,18 @@ def first_frame_anchors(stage: WrinkleFrameStage) -> dict[str, Any]:
     first frame's cross-sections already find along it (subtracted from every frame's: the first frame is the
     scan's expression, so a crease it shows is in the scan).
     """
-    from ..cameras import RayCaster, open_footage
-    from ..io.read_result import read_result
-    from .fit_cross_sections import fit_cross_sections
-    from .surface_wrinkles import anchor_curves, wrinkles_on_surface
+    from .surface_wrinkles import anchor_curves
 
-    result = read_result(stage.result_dir)
-    with np.load(Path(stage.result_dir) / "correspondence.npz") as data:
-        correspondence = {k: data[k] for k in data.files}
-    A = stage.large_scale(0)
-    at = float(np.clip(stage.mocap_frames[0], 0, result.n_frames - 1))
-    caster = RayCaster(large_scale_in_mocap(A, correspondence, at), result.mesh.faces)
-    anchors: dict[str, Any] = {}
-    for camera, path, track in zip(stage.cameras, stage.footage, stage.tracks):
+    A, caster = stage.geometry(0)
+    lines: dict[str, Any] = {}
+    for camera, track in zip(stage.cameras, stage.tracks):
         curves = track[0]
-        if not curves:
-            continue
-        polylines = [np.asarray(p, dtype=np.float64) for _, _, p in curves]
-        found = anchor_curves(polylines, camera, caster)
-        with open_footage(path) as footage:
-            image = footage.frame(0)
-        sections = fit_cross_sections(image, polylines, camera, caster)
-        names = [f"{camera.name}:{identity}" for identity, _, _ in curves]
-        # the rest frame's own creases, along each line: the scan already holds them
-        at_rest = wrinkles_on_surface(polylines, sections, camera, caster, A, result.mesh.faces, identities=names,
-                                      anchors=found)
-        rest_depth = {w.wrinkle: w.depth for w in at_rest}
-        for name, hit in zip(names, found):
-            if hit is not None:
-                anchors[name] = (hit[0], hit[1], rest_depth.get(name, np.zeros(len(hit[0]))))
-    return anchors
+        found = anchor_curves([np.asarray(p, dtype=np.float64) for _, _, p in curves], camera, caster)
+        lines.update({f"{camera.name}:{identity}": hit for (identity, _, _), hit in zip(curves, found) if hit})
+    # the rest frame's own creases, along each line: the scan already holds them
+    views, _, _ = stage.camera_views(0, A, caster, lines)
+    rest_depth = {w.wrinkle: w.depth for view in views for w in view}
+    return {name: (tri, bary, rest_depth.get(name, np.zeros(len(tri)))) for name, (tri, bary) in lines.items()}
 
 
 def _mm_per(unit: str) -> float:
