@@ -191,13 +191,13 @@ class MuscleSolver:
         cranium = np.hstack([c[k:k + 9].reshape(3, 3), c[k + 9:k + 12, None]])
         return apply_affine(cranium, self.embedding.matrix @ x + self.embedding.offsets)
 
-    def _jacobian(self, c: FloatArray, x: FloatArray, valid: np.ndarray,
-                  timings: dict[str, float]) -> tuple[FloatArray, FloatArray, FloatArray | None]:
-        """``d markers / d c_free`` (3 Mv, n_free) at the model's last equilibrium, and ``dX/da``, ``dX/db_m``."""
+    def _jacobian(self, c: FloatArray, x: FloatArray, valid: np.ndarray, timings: dict[str, float], *,
+                  jaw: bool) -> tuple[FloatArray, FloatArray, FloatArray | None]:
+        """``d markers / d c`` (3 Mv, k + 24) at the model's last equilibrium, and ``dX/da``, ``dX/db_m``."""
         t0 = time.perf_counter()
         k, W = self.n_muscles, self.embedding.matrix[valid]
         Mc = c[k:k + 9].reshape(3, 3)
-        dXa, dXb = self.model.jacobians(jaw=self.solve_jaw)
+        dXa, dXb = self.model.jacobians(jaw=jaw)
         n = x.shape[0]
         Mv = int(valid.sum())
         cols = np.zeros((Mv, 3, k + 24))
@@ -212,7 +212,22 @@ class MuscleSolver:
             Sb = (W @ dXb.transpose(1, 0, 2).reshape(n, -1)).reshape(Mv, 12, 3) @ Mc.T
             cols[:, :, k + 12:] = Sb.transpose(0, 2, 1)
         timings["linearise"] += time.perf_counter() - t0
-        return cols.reshape(3 * Mv, -1)[:, self.free], dXa, dXb
+        return cols.reshape(3 * Mv, -1), dXa, dXb
+
+    def marker_jacobian(self, controls: MuscleControls, x0: FloatArray | None = None) -> FloatArray:
+        """``d markers / d c`` at the equilibrium of ``controls``: (M, 3, k + 24) mm per unit control.
+
+        Columns in the order of :meth:`MuscleControls.as_vector`; the activation columns by
+        eq. 5, the mandible's by eq. 6, the cranium's analytically (the whole face moves with
+        the cranium's affine map). ``x0``: initial guess of the nodes in the cranium's frame.
+        """
+        if not isinstance(controls, MuscleControls) or controls.n_muscles != self.n_muscles:
+            raise InputError(f"controls: expected MuscleControls with {self.n_muscles} activations")
+        c = controls.as_vector()
+        result = self._solve_at(c, self.model.rest_positions if x0 is None else x0)
+        timings = {"linearise": 0.0}
+        J = self._jacobian(c, result.positions, np.ones(self.n_markers, dtype=bool), timings, jaw=True)[0]
+        return J.reshape(self.n_markers, 3, -1)
 
     def _violations(self, c: FloatArray) -> dict[str, float]:
         k = self.n_muscles
@@ -337,7 +352,8 @@ class MuscleSolver:
         x, inverted, not_converged = result.positions, result.inverted_tets, not result.converged
         phi, r = self._objective(c, x, targets, valid)
         while steps < max_steps:
-            J, dXa, dXb = self._jacobian(c, x, valid, timings)
+            J_full, dXa, dXb = self._jacobian(c, x, valid, timings, jaw=self.solve_jaw)
+            J = J_full[:, self.free]
             c_new = self._step(c, r, J, phi, timings)
             dc = (c_new - c)[self.free]
             phi_linear = float(np.sum((r + J @ dc) ** 2))

@@ -1,0 +1,101 @@
+"""MuscleModel: the bone frames, the Jacobians of eq. 5 and 6 against finite differences, the cranium's invariance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from facecap.errors import InputError
+from facecap.fem import QuasistaticSolver
+from facecap.muscles import MuscleModel
+from facecap.muscles.muscle_model import apply_affine
+
+
+@pytest.fixture(scope="module")
+def tight(anatomy) -> MuscleModel:
+    """A model solved to a much tighter residual, so finite differences of equilibria are accurate."""
+    return MuscleModel(anatomy, tolerance=1e-10)
+
+
+def _state(model: MuscleModel) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(3)
+    a = rng.uniform(0, 0.5, model.n_muscles) * (rng.uniform(size=model.n_muscles) < 0.5)
+    return a, model.jaw.transform(np.radians(8.0), 1.0, 2.0)
+
+
+def test_dirichlet_sets(anatomy, model) -> None:
+    d = model.flesh.dirichlet_nodes
+    assert np.array_equal(d, np.concatenate([model.cranium_set, model.mandible_set]))
+    assert np.isin(anatomy.rim_nodes, d).all()  # rim='bone' holds the rim with its nearest bone
+    assert np.isin(anatomy.mandible_nodes, model.mandible_set).all() and np.isin(anatomy.cranium_nodes, model.cranium_set).all()
+    free = MuscleModel(anatomy, rim="free")
+    assert not np.isin(anatomy.rim_nodes, free.flesh.dirichlet_nodes).any()
+    with pytest.raises(InputError, match="rim"):
+        MuscleModel(anatomy, rim="glued")  # type: ignore[arg-type]
+
+
+def test_bone_positions_and_their_velocities(model) -> None:
+    assert np.array_equal(model.bone_positions(np.eye(3, 4)), model.rest_positions[model.flesh.dirichlet_nodes])
+    b = model.jaw.transform(0.2, 1.0, 3.0)
+    vec = np.concatenate([b[:, :3].ravel(), b[:, 3]])
+    velocities = model.mandible_velocities()
+    for i in range(12):
+        e = np.zeros(12)
+        e[i] = 1e-3
+        plus, minus = vec + e, vec - e
+        fd = (model.bone_positions(np.hstack([plus[:9].reshape(3, 3), plus[9:, None]]))
+              - model.bone_positions(np.hstack([minus[:9].reshape(3, 3), minus[9:, None]]))) / 2e-3
+        assert np.allclose(fd, velocities[i], atol=1e-9)
+
+
+def test_skin_at_rest_is_the_scan(anatomy, model) -> None:
+    skin = model.skin(model.rest_positions)
+    assert np.abs(skin - anatomy.scan_vertices).max() < 1e-9
+    assert model.skin_follows[anatomy.skin_meshed].all()  # the whole meshed face follows the flesh
+
+
+def test_activation_jacobian_matches_finite_differences(tight) -> None:
+    a, b = _state(tight)
+    base = tight.equilibrium(a, b)
+    assert base.converged
+    dXa, dXb = tight.jacobians()
+    assert dXa.shape == (tight.n_muscles, tight.flesh.n_nodes, 3) and dXb.shape == (12, tight.flesh.n_nodes, 3)
+    h = 1e-4
+    # the three strongest active muscles: at a = 0 the fibres sit at the passive curve's kink
+    # (stretch 1), where the equilibrium has one-sided derivatives only
+    active = np.flatnonzero(a > 0.1)
+    for k in active[np.argsort(-np.abs(dXa[active]).max(axis=(1, 2)))[:3]]:
+        e = np.zeros_like(a)
+        e[k] = h
+        fd = (tight.equilibrium(a + e, b, x0=base.positions).positions
+              - tight.equilibrium(a - e, b, x0=base.positions).positions) / (2 * h)
+        assert np.abs(fd - dXa[k]).max() < 1e-3 * np.abs(dXa[k]).max()
+
+
+def test_jaw_jacobian_matches_finite_differences(tight) -> None:
+    a, b = _state(tight)
+    base = tight.equilibrium(a, b)
+    _, dXb = tight.jacobians()
+    vec = np.concatenate([b[:, :3].ravel(), b[:, 3]])
+    h = 1e-4
+    # 1e-3 relative, not tighter: fibres of idle muscles near stretch 1 (the passive curve's
+    # kink) make the equilibrium only piecewise smooth at the scale of the step
+    for i in (1, 5, 7, 10):  # rotation-like entries of M_m and a translation
+        e = np.zeros(12)
+        e[i] = h
+        plus, minus = vec + e, vec - e
+        fd = (tight.equilibrium(a, np.hstack([plus[:9].reshape(3, 3), plus[9:, None]]), x0=base.positions).positions
+              - tight.equilibrium(a, np.hstack([minus[:9].reshape(3, 3), minus[9:, None]]), x0=base.positions).positions) / (2 * h)
+        assert np.abs(fd - dXb[i]).max() < 1e-3 * np.abs(dXb[i]).max()
+
+
+def test_a_rigid_cranium_moves_the_equilibrium_rigidly(tight) -> None:
+    """Solving in the cranium's frame and moving the result equals solving with the moved bones."""
+    a, b = _state(tight)
+    x_rel = tight.equilibrium(a, b).positions
+    cranium = np.hstack([Rotation.from_rotvec([0.2, -0.4, 0.3]).as_matrix(), [[5.0], [-3.0], [10.0]]])
+    bones_world = apply_affine(cranium, tight.bone_positions(b))
+    direct = QuasistaticSolver(tight.flesh, tolerance=1e-10).solve(a, bones_world, x0=apply_affine(cranium, tight.rest_positions))
+    assert direct.converged
+    assert np.abs(direct.positions - apply_affine(cranium, x_rel)).max() < 1e-6
