@@ -99,3 +99,22 @@ def test_a_rigid_cranium_moves_the_equilibrium_rigidly(tight) -> None:
     direct = QuasistaticSolver(tight.flesh, tolerance=1e-10).solve(a, bones_world, x0=apply_affine(cranium, tight.rest_positions))
     assert direct.converged
     assert np.abs(direct.positions - apply_affine(cranium, x_rel)).max() < 1e-6
+
+
+def test_batched_boundary_jacobian_equals_single_solves(model) -> None:
+    """The (c, d, 3) form of QuasistaticSolver.boundary_jacobian (added for the jaw's 12 columns)."""
+    a, b = _state(model)
+    model.equilibrium(a, b)
+    velocities = model.mandible_velocities()[[0, 4, 9]]
+    batched = model.solver.boundary_jacobian(velocities)
+    single = np.stack([model.solver.boundary_jacobian(v) for v in velocities])
+    assert batched.shape == single.shape and np.abs(batched - single).max() < 1e-10 * np.abs(single).max()
+
+
+def test_a_repeated_solve_is_not_repeated(model) -> None:
+    a, b = _state(model)
+    first = model.equilibrium(a, b)
+    again = model.equilibrium(a, b, x0=first.positions + 1e-12)
+    assert again.iterations == 0 and again.positions is first.positions
+    moved = model.equilibrium(a, model.jaw.transform(0.2), x0=first.positions)
+    assert moved.iterations > 0

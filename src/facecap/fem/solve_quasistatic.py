@@ -342,29 +342,36 @@ class QuasistaticSolver:
         return self.solve_linear(self.model.force_basis(self._positions))
 
     def boundary_jacobian(self, dirichlet_velocity: FloatArray) -> FloatArray:
-        """``dX/db`` for one motion of the Dirichlet nodes (eq. 6): ``K_UU dX_U = -K_UC dX_C``.
+        """``dX/db`` for motions of the Dirichlet nodes (eq. 6): ``K_UU dX_U = -K_UC dX_C``.
 
         Parameters
         ----------
-        dirichlet_velocity : (d, 3) float64 array, mm per unit of the control
-            ``dX_C/db_i`` for ``model.dirichlet_nodes``.
+        dirichlet_velocity : (d, 3) or (c, d, 3) float64 array, mm per unit of the control
+            ``dX_C/db_i`` for ``model.dirichlet_nodes``; several controls at once share one
+            solve with ``c`` right-hand sides.
 
         Returns
         -------
-        (n, 3) float64 array, mm per unit of the control
+        (n, 3) or (c, n, 3) float64 array, mm per unit of the control
             Free rows from the solve, Dirichlet rows equal to ``dirichlet_velocity``.
         """
         model = self.model
         self.factor()  # fixes which stiffness (exact or projected) the Jacobians use
         assert self._element_stiffness is not None
         v = np.asarray(dirichlet_velocity, dtype=np.float64)
-        if v.shape != (model.dirichlet_nodes.size, 3):
-            raise InputError(f"dirichlet_velocity: expected shape ({model.dirichlet_nodes.size}, 3), got {v.shape}")
+        single = v.ndim == 2
+        V = v[None] if single else v
+        if V.ndim != 3 or V.shape[1:] != (model.dirichlet_nodes.size, 3):
+            raise InputError(f"dirichlet_velocity: expected shape ({model.dirichlet_nodes.size}, 3) or "
+                             f"(c, {model.dirichlet_nodes.size}, 3), got {v.shape}")
+        rhs = np.empty((V.shape[0], model.n_nodes, 3))
         u = np.zeros((model.n_nodes, 3))
-        u[model.dirichlet_nodes] = v
-        out = self.solve_linear(-model.element_action(self._element_stiffness, u))
-        out[model.dirichlet_nodes] = v
-        return out
+        for i, vi in enumerate(V):
+            u[model.dirichlet_nodes] = vi
+            rhs[i] = -model.element_action(self._element_stiffness, u)
+        out = self.solve_linear(rhs)
+        out[:, model.dirichlet_nodes] = V
+        return out[0] if single else out
 
 
 def solve_quasistatic(model: FleshModel, activations: FloatArray, dirichlet_positions: FloatArray,
