@@ -68,7 +68,8 @@ def test_linear_terms_match_values() -> None:
 
 def test_violations_of_the_bounds() -> None:
     j = jaw()
-    assert np.allclose(j.violations(j.transform(np.radians(45.0))), [0, 0, 0, 0, 0, np.sin(np.radians(45)) - np.sin(np.radians(35))])
+    excess = np.sin(np.radians(45)) - np.sin(np.radians(35))
+    assert np.allclose(j.violations(j.transform(np.radians(45.0))), [0, 0, 0, 0, 0, excess])
     v = j.violations(j.transform(0.1, 20.0, 16.0))
     assert np.isclose(v[4], 5.0) and np.isclose(v[3], 1.0) and v[5] == 0
     backwards = j.transform(-0.1)  # closing past the rest bite

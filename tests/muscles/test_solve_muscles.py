@@ -17,7 +17,8 @@ def test_a_take_is_tracked_frame_by_frame(anatomy, model, layout) -> None:
     end = rng.uniform(0, 0.7, k) * (rng.uniform(size=k) < 0.5)
     truth, markers = [], []
     for s in np.linspace(0, 1, 4):  # activations change by up to 0.23 between frames, the jaw by 1.3 degrees
-        c = MuscleControls((1 - s) * start + s * end, np.eye(3, 4), model.jaw.transform(np.radians(3 + 4 * s), s, 2 * s))
+        jaw = model.jaw.transform(np.radians(3 + 4 * s), s, 2 * s)
+        c = MuscleControls((1 - s) * start + s * end, np.eye(3, 4), jaw)
         truth.append(c)
         markers.append(forward_markers(model, e, c).markers)
     take = solve_muscles(anatomy, layout.marker_vertices, layout.rest_markers, np.stack(markers), model=model,

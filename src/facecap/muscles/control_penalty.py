@@ -29,17 +29,18 @@ class ControlPenalty(NamedTuple):
     hessian: FloatArray
 
 
+_BASIS = np.eye(9).reshape(9, 3, 3)
+
+
 def _rigidity(M: FloatArray) -> tuple[float, FloatArray, FloatArray]:
     """``|M^T M - I|_F^2``, its gradient (9,) and its Hessian (9, 9) projected to PSD."""
     E = M.T @ M - np.eye(3)
     value = float((E**2).sum())
     grad = 4.0 * M @ E
-    H = np.empty((9, 9))
-    for i in range(9):
-        dM = np.zeros(9)
-        dM[i] = 1.0
-        dM = dM.reshape(3, 3)
-        H[:, i] = (4.0 * dM @ E + 4.0 * M @ (dM.T @ M + M.T @ dM)).ravel()
+    # d(grad)[dM] = 4 dM E + 4 M (dM^T M + M^T dM), for the 9 unit matrices dM at once
+    B = _BASIS
+    H = 4.0 * (B @ E + M @ (B.transpose(0, 2, 1) @ M + M.T @ B))
+    H = H.reshape(9, 9).T
     H = 0.5 * (H + H.T)
     lam, Q = np.linalg.eigh(H)
     return value, grad.ravel(), (Q * np.maximum(lam, 0.0)) @ Q.T
@@ -104,7 +105,7 @@ def control_penalty(vector: FloatArray, n_muscles: int, jaw: JawConstraints) -> 
         value += v
         grad[start:start + 9] += g
         hess[start:start + 9, start:start + 9] += H
-    G, g0 = jaw.linear_terms()
+    G, g0 = jaw.affine_terms
     psi = G @ c[k + 12:] + g0
     d, s = jaw.track_length_mm, np.sin(jaw.max_opening_rad)
     terms = [(psi[0] ** 2, 2 * psi[0], 2.0), (psi[1] ** 2, 2 * psi[1], 2.0), (psi[2] ** 2, 2 * psi[2], 2.0),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -124,6 +125,11 @@ class JawConstraints:
         return cls(u, v, 0.5 * (left + right), float(np.linalg.norm(u)), float(track_length_mm),
                    float(np.radians(max_opening_deg)))
 
+    @cached_property
+    def affine_terms(self) -> tuple[FloatArray, FloatArray]:
+        """:meth:`linear_terms`, computed once."""
+        return self.linear_terms()
+
     def linear_terms(self) -> tuple[FloatArray, FloatArray]:
         """``G (6, 12)`` and ``g0 (6,)`` with ``psi = G [vec(M_m), t_m] + g0`` (``vec`` row-major)."""
         u, v, w, m, half = self.u, self.v, self.w, self.midpoint, 0.5 * self.condyle_distance_mm
@@ -140,7 +146,7 @@ class JawConstraints:
     def values(self, mandible: Any) -> FloatArray:
         """``psi1 .. psi6`` of a mandible transform ``(3, 4)`` (mm for psi2-psi5)."""
         b = np.asarray(mandible, dtype=np.float64)
-        G, g0 = self.linear_terms()
+        G, g0 = self.affine_terms
         return G @ np.concatenate([b[:, :3].ravel(), b[:, 3]]) + g0
 
     def violations(self, mandible: Any) -> FloatArray:

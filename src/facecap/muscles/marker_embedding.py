@@ -70,7 +70,8 @@ def marker_embedding(anatomy: Any, marker_vertices: Any, rest_markers: Any, *,
         raise CorrespondenceError(f"marker_vertices: expected a non-empty 1-D integer array, got shape {idx.shape}")
     idx = idx.astype(np.int64)
     if idx.min() < 0 or idx.max() >= n_scan:
-        raise CorrespondenceError(f"marker_vertices: indices span {idx.min()}..{idx.max()}, the scan has {n_scan} vertices")
+        raise CorrespondenceError(f"marker_vertices: indices span {idx.min()}..{idx.max()}, "
+                                  f"the scan has {n_scan} vertices")
     rest = as_points(rest_markers, name="rest_markers")
     if rest.shape[0] != idx.size:
         raise InputError(f"rest_markers: expected {idx.size} rows (one per marker vertex), got {rest.shape[0]}")

@@ -1,4 +1,4 @@
-"""The controls of the muscle-driven face: activations and the cranium and mandible frames (Sifakis et al. 2005, sec. 5, 8)."""
+"""The controls of the muscle-driven face: activations, cranium and mandible frames (Sifakis et al. 2005, sec. 5, 8)."""
 
 from __future__ import annotations
 

@@ -123,6 +123,9 @@ class MuscleSolver:
         Stop when a step lowers the marker objective by less than this fraction.
     line_search_evaluations : int, default 6
         Golden-section evaluations (quasistatic solves) when the full step falls short.
+    always_search : bool, default False
+        Run the golden-section search after every full step, as the paper did, even when
+        the full step delivers at least half the decrease the linearisation predicted.
     marker_noise_mm : float, default 0.2
         Expected marker noise: the penalty weight starts at its square (the paper's
         "variance of the localization error").
@@ -152,7 +155,8 @@ class MuscleSolver:
 
     def __init__(self, anatomy: Any, marker_vertices: Any, rest_markers: Any, *, solve_cranium: bool = True,
                  solve_jaw: bool = True, max_steps: int = 5, max_warm_steps: int = 2,
-                 step_tolerance: float = 0.01, line_search_evaluations: int = 6, marker_noise_mm: float = 0.2,
+                 step_tolerance: float = 0.01, line_search_evaluations: int = 6, always_search: bool = False,
+                 marker_noise_mm: float = 0.2,
                  penalty_growth: float = 1.05, penalty_ratio: float = 1e6, constraint_tolerance: float = 1e-5,
                  flag_residual_mm: float = 5.0, min_markers: int = 6,
                  max_offset_mm: float = DEFAULT_MAX_OFFSET_MM, model: MuscleModel | None = None,
@@ -178,6 +182,7 @@ class MuscleSolver:
         self.max_steps, self.max_warm_steps = int(max_steps), int(max_warm_steps)
         self.step_tolerance = float(step_tolerance)
         self.line_search_evaluations = int(line_search_evaluations)
+        self.always_search = bool(always_search)
         self.initial_penalty = float(marker_noise_mm) ** 2
         self.penalty_growth, self.penalty_ratio = float(penalty_growth), float(penalty_ratio)
         self.constraint_tolerance = float(constraint_tolerance)
@@ -273,7 +278,8 @@ class MuscleSolver:
         timings["gauss_newton"] += time.perf_counter() - t0
         return trial
 
-    def _objective(self, c: FloatArray, x: FloatArray, targets: FloatArray, valid: np.ndarray) -> tuple[float, FloatArray]:
+    def _objective(self, c: FloatArray, x: FloatArray, targets: FloatArray,
+                   valid: np.ndarray) -> tuple[float, FloatArray]:
         r = (self._model_markers(c, x)[valid] - targets[valid]).reshape(-1)
         return float(r @ r), r
 
@@ -367,7 +373,8 @@ class MuscleSolver:
             newton += result.iterations
             phi_new, _ = self._objective(c_new, result.positions, targets, valid)
             best = (1.0, phi_new, result)
-            if not (phi_new <= phi and (predicted <= 0 or phi - phi_new >= 0.5 * predicted)):
+            delivered = phi_new <= phi and (predicted <= 0 or phi - phi_new >= 0.5 * predicted)
+            if self.always_search or not delivered:
                 t0 = time.perf_counter()
                 best, n_solves, n_newton = self._line_search(c, c_new, x, phi, result, targets, valid)
                 timings["line_search"] += time.perf_counter() - t0
