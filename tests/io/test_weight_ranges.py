@@ -26,3 +26,21 @@ def test_every_frame_is_kept_and_every_weight_lies_in_unit_range():
     assert np.abs(rest).max() < 1e-5
     changing = [0, 2, 3, 5]
     assert np.all((unit.rest_weights[changing] > 0) & (unit.rest_weights[changing] < 1))
+
+
+def test_overwriting_the_targets_gives_the_same_animation_without_a_copy():
+    rng = np.random.default_rng(1)
+    targets = rng.normal(size=(4, 30, 3)).astype(np.float32)
+    weights = rng.normal(scale=5.0, size=(12, 4))
+    copied = to_unit_range(targets, weights)
+    mine = targets.copy()
+    in_place = to_unit_range(mine, weights, overwrite_targets=True)
+    assert in_place.targets is mine  # rescaled where it lay
+    np.testing.assert_array_equal(in_place.targets, copied.targets)
+    np.testing.assert_array_equal(in_place.weights, copied.weights)
+    np.testing.assert_array_equal(in_place.base_offset, copied.base_offset)
+    # without the flag (or for an array it may not write) the caller's targets are left as they were
+    frozen = targets.copy()
+    frozen.setflags(write=False)
+    assert to_unit_range(frozen, weights, overwrite_targets=True).targets is not frozen
+    np.testing.assert_array_equal(frozen, targets)

@@ -114,14 +114,15 @@ def principal_targets_from_rig(
     tol = _tolerance(tolerance_mm)
     T, K = A.shape[0], B.shape[0]
     n = B.shape[1]
-    flatB = B.reshape(K, -1)
-    gram = flatB @ flatB.T  # (K, K): B B^T (scalar) or M^T M (vector)
+    gram = _gram(B)  # (K, K): B B^T (scalar) or M^T M (vector)
     lam, E = np.linalg.eigh(gram)
     keep = lam > lam.max() * _RANK_TOLERANCE**2 if lam.size and lam.max() > 0 else np.zeros(K, bool)
     lam, E = lam[keep], E[:, keep]
     # coordinates of each frame in the orthonormal basis Q: A E lambda^1/2 (per coordinate for a scalar basis)
     coords = A.reshape(T, K, -1)  # (T, K, c) with c = 3 (scalar) or 1 (vector)
-    Atilde = np.einsum("tkc,kl->tlc", coords, E * np.sqrt(lam)).reshape(T, -1)
+    c = coords.shape[2]
+    # one matrix product per coordinate, laid out (T, L, c) as the rest expects (einsum took 0.5 s at T = 10,000)
+    Atilde = np.matmul(coords.transpose(0, 2, 1), E * np.sqrt(lam)).transpose(0, 2, 1).reshape(T, -1)
     # right singular vectors of Atilde from its small Gram matrix (m x m); the weights and the
     # residual are then projections of Atilde itself, exact whatever the eigenvalues' round-off
     s2, W = np.linalg.eigh(Atilde.T @ Atilde)
@@ -130,10 +131,8 @@ def principal_targets_from_rig(
     rank = int(np.sum(s2 > s2[0] * _RANK_TOLERANCE**2)) if s2.size and s2[0] > 0 else 0
     r = _choose_r(S, rank, max_r, tol, T * n)
     # targets: M (E lambda^-1/2 (x) I) W_r ; P has shape (K, c, r)
-    c = coords.shape[2]
     to_rig = E / np.sqrt(lam)
     P = np.einsum("kl,lcr->kcr", to_rig, W[:, :r].reshape(lam.size, c, r))
-    directions = _apply_M(B, P, scalar)  # (r, n, 3)
     weights = Atilde @ W[:, :r]
 
     # error figures: Y = the discarded coordinates of each frame
@@ -142,7 +141,7 @@ def principal_targets_from_rig(
     frame_energy = np.einsum("tq,tq->t", Y, Y)
     residual = float(frame_energy.sum())
     P_res = np.einsum("kl,lcq->kcq", to_rig, W[:, r:].reshape(lam.size, c, q))
-    vertex_energy = _vertex_energy(B, P_res, Y.T @ Y, scalar)
+    directions, vertex_energy = _targets_and_vertex_energy(B, P, P_res, Y.T @ Y, scalar)  # (r, n, 3), (n,)
     max_mm = None
     if exact_max:
         # residual coefficients A_res (T, K, c): the discarded part of each frame, in the rig's own terms
@@ -316,7 +315,7 @@ def principal_targets(
 
 
 def _rig_arrays(basis: object, coefficients: object, vertex_subset: object) -> tuple[np.ndarray, np.ndarray, bool]:
-    """(B, A, scalar): B (K, n_sub) or (K, n_sub, 3) float64, restricted first; A (T, K, 3) or (T, K) float64."""
+    """(B, A, scalar): B (K, n_sub) or (K, n_sub, 3) float32 or float64, restricted first; A (T, K, 3) or (T, K) float64."""
     try:
         B = np.asarray(basis)
         A = np.asarray(coefficients, dtype=np.float64)
@@ -339,8 +338,13 @@ def _rig_arrays(basis: object, coefficients: object, vertex_subset: object) -> t
     if B.shape[0] < 1 or A.shape[0] < 1:
         raise InputError(f"basis, coefficients: expected at least one basis function and one frame, got {B.shape}, {A.shape}")
     subset = _subset(vertex_subset, B.shape[1])
-    B = np.asarray(B if subset is None else B[:, subset], dtype=np.float64)  # restrict before the float64 copy
-    if not (np.all(np.isfinite(B)) and np.all(np.isfinite(A))):
+    if subset is not None:
+        B = B[:, subset]
+    if B.dtype.kind != "f":
+        B = B.astype(np.float64)
+    # the basis keeps its float type (float32 from a rig: a float64 copy at 700k vertices cost 1.4 s);
+    # the products below convert it block by block, and _gram checks it is finite on the way
+    if not np.all(np.isfinite(A)):
         raise InputError("basis, coefficients: expected finite values, got NaN or infinity")
     return B, A, scalar
 
@@ -386,28 +390,62 @@ def _choose_r(S: np.ndarray, rank: int, max_r: int, tol: float | None, n_points:
     return max(r, 1) if S.size and S[0] > 0 else 0
 
 
-def _apply_M(B: np.ndarray, P: np.ndarray, scalar: bool) -> np.ndarray:
-    """``M P`` as (r, n, 3): P (K, 3, r) for a scalar basis, (K, 1, r) for vector shapes."""
-    K, r = P.shape[0], P.shape[2]
-    if scalar:
-        out = B.T @ P.reshape(K, 3 * r)  # (n, 3r)
-        # transposed into float32 in one pass: at 700k vertices and 48 targets the float64 copy was 1.6 s
-        targets = np.empty((r, B.shape[1], 3), np.float32)
-        np.copyto(targets, out.reshape(-1, 3, r).transpose(2, 0, 1), casting="same_kind")
-        return targets
-    return np.einsum("kr,kic->ric", P[:, 0], B, optimize=True)
+_VERTEX_BLOCK = 8192
+"""Vertices per block of the basis products: a float64 block of 90 shell weights is 6 MB, in cache."""
 
 
-def _vertex_energy(B: np.ndarray, P: np.ndarray, YtY: np.ndarray, scalar: bool) -> np.ndarray:
-    """Per vertex, the sum over frames of its squared residual ``M P Y^T``: ``m_i^T (P Y^T Y P^T) m_i``."""
-    K, c, q = P.shape
-    if q == 0:
-        return np.zeros(B.shape[1])
-    X = P.reshape(K * c, q)
-    H = (X @ YtY @ X.T).reshape(K, c, K, c)
-    if scalar:
-        return np.einsum("ki,kl,li->i", B, np.einsum("kclc->kl", H), B, optimize=True)
-    return np.einsum("kic,kl,lic->i", B, H[:, 0, :, 0], B, optimize=True)
+def _vertex_blocks(B: np.ndarray) -> Iterator[tuple[slice, np.ndarray]]:
+    """``(vertices, B[:, vertices] as float64 (K, b) or (K, b, 3))`` block by block."""
+    n = B.shape[1]
+    for start in range(0, n, _VERTEX_BLOCK):
+        rows = slice(start, min(start + _VERTEX_BLOCK, n))
+        yield rows, np.asarray(B[:, rows], dtype=np.float64)
+
+
+def _gram(B: np.ndarray) -> np.ndarray:
+    """``B B^T`` over all vertices (and coordinates) in float64, (K, K); raises on NaN or infinity."""
+    K = B.shape[0]
+    gram = np.zeros((K, K))
+    for _, block in _vertex_blocks(B):
+        flat = block.reshape(K, -1)
+        if not np.all(np.isfinite(flat)):
+            raise InputError("basis, coefficients: expected finite values, got NaN or infinity")
+        gram += flat @ flat.T
+    return gram
+
+
+def _targets_and_vertex_energy(B: np.ndarray, P: np.ndarray, P_res: np.ndarray, YtY: np.ndarray,
+                               scalar: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The targets ``M P`` (r, n, 3) float32 and each vertex's residual energy over the take, (n,).
+
+    Block by block of vertices, so the product is transposed into the
+    targets' layout while it is in cache (the whole (n, 3r) product, then one
+    strided copy, took 3.7 s at 700k vertices and 48 targets; this 0.4 s). P is (K, 3, r) for a
+    scalar basis, (K, 1, r) for vector shapes. The residual energy of vertex i
+    is ``m_i^T (P_res Y^T Y P_res^T) m_i``.
+    """
+    K, c, r = P.shape
+    n = B.shape[1]
+    targets = np.empty((r, n, 3), np.float32)
+    vertex_energy = np.zeros(n)
+    q = P_res.shape[2]
+    X = P_res.reshape(K * c, q)
+    H = (X @ YtY @ X.T).reshape(K, c, K, c) if q else None
+    H_shape = None if H is None else (np.einsum("kclc->kl", H) if scalar else H[:, 0, :, 0])
+    # rows of the product ordered (target, coordinate): each target's (3, b) block is then transposed alone
+    to_targets = np.ascontiguousarray(P.transpose(2, 1, 0).reshape(r * c, K)) if scalar else P[:, 0].T
+    for rows, block in _vertex_blocks(B):
+        b = rows.stop - rows.start
+        if scalar:  # block (K, b): (3r, b) -> (r, b, 3)
+            targets[:, rows] = (to_targets @ block).reshape(r, 3, b).transpose(0, 2, 1)
+            if H_shape is not None:
+                vertex_energy[rows] = np.einsum("ki,ki->i", H_shape @ block, block)
+        else:  # block (K, b, 3): (r, b * 3)
+            flat = block.reshape(K, -1)
+            targets[:, rows] = (to_targets @ flat).reshape(r, b, 3)
+            if H_shape is not None:
+                vertex_energy[rows] = np.einsum("kic,kic->i", (H_shape @ flat).reshape(K, b, 3), block)
+    return targets, vertex_energy
 
 
 def _max_residual(B: np.ndarray, A_res: np.ndarray, scalar: bool, progress: bool, block: int = 256) -> float:

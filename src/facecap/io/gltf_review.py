@@ -86,7 +86,7 @@ def write_gltf_review(
                                   max_targets=max_targets, progress=progress)
         base = review.mesh
     # weights in [0, 1]: Blender's glTF importer widens a shape key's range by the first keyframe only
-    unit = to_unit_range(found.targets, found.weights)
+    unit = to_unit_range(found.targets, found.weights, overwrite_targets=True)  # found is ours: no copy
     base = base.with_vertices(base.vertices + unit.base_offset)
     markers = None if result.markers is None else result.markers * to_mm
     head_motion = None

@@ -39,11 +39,15 @@ class UnitRangeWeights(NamedTuple):
     """(m,) float64: the weights that give the rest shape (in [0, 1] unless a target's weight never changes)."""
 
 
-def to_unit_range(targets: np.ndarray, weights: np.ndarray) -> UnitRangeWeights:
+def to_unit_range(targets: np.ndarray, weights: np.ndarray, *, overwrite_targets: bool = False) -> UnitRangeWeights:
     """Rescale ``targets`` (m, n, 3) and ``weights`` (T, m) so every weight lies in [0, 1] (see the module docstring).
 
     Targets whose weights already lie in [0, 1] are kept as they are; a
-    constant weight (``hi == lo``) moves wholly into the base.
+    constant weight (``hi == lo``) moves wholly into the base. With
+    ``overwrite_targets`` a writable float32 ``targets`` is rescaled in place
+    and returned as ``.targets`` (as SciPy's ``overwrite_a``: for a caller
+    that made the array and needs no copy of it; at 700k vertices and 48
+    targets a fresh 0.4 GB copy took 1.2 s).
     """
     D = np.asarray(targets)
     W = np.asarray(weights, dtype=np.float64)
@@ -56,7 +60,8 @@ def to_unit_range(targets: np.ndarray, weights: np.ndarray) -> UnitRangeWeights:
     flat = span <= 0  # a weight that never changes: all of it goes into the base
     span = np.where(flat, 1.0, span)
     base_offset = np.zeros(D.shape[1:], np.float64)
-    scaled = np.empty(D.shape, np.float32)
+    in_place = overwrite_targets and D.dtype == np.float32 and D.flags.writeable
+    scaled = D if in_place else np.empty(D.shape, np.float32)
     for j in range(m):  # one target at a time: no float64 copy of all of them
         if lo[j] != 0.0:
             base_offset += lo[j] * D[j]

@@ -147,7 +147,9 @@ def write_usd_blendshapes(
         basis, coefficients = rig.in_mm()
         principal = principal_targets_from_rig(basis, coefficients, max_targets=int(max_shapes),
                                                exact_max=exact_max_error, progress=progress)
-        shapes = principal.targets / to_mm
+        shapes = principal.targets  # made here: converted and rescaled in place, no 0.4 GB copies
+        if to_mm != 1:
+            shapes /= to_mm
         weights = principal.weights
         names = [f"pc{j:03d}" for j in range(shapes.shape[0])]
         tolerance = 0.0  # principal shapes are dense: nothing to drop
@@ -156,7 +158,7 @@ def write_usd_blendshapes(
         weights = rig.shape_weights()
     m, T = shapes.shape[0], rig.n_frames
     # weights in [0, 1]: Blender's USD importer keeps every shape key's range at [0, 1] and clamps
-    unit = to_unit_range(shapes, weights)
+    unit = to_unit_range(shapes, weights, overwrite_targets=principal is not None)
     shapes, weights = unit.targets, unit.weights
     share = tolerance / m if tolerance > 0 else 0.0
     tokens = [_token(name, k) for k, name in enumerate(names)]
