@@ -48,6 +48,19 @@ def test_frames_are_the_linear_combination(kind, tmp_path):
     np.testing.assert_array_equal(back.frames(), rig.frames())
 
 
+def test_a_fortran_ordered_basis_is_written_as_it_lies_and_reads_back_the_same(tmp_path):
+    rig = _random_rig("vertex-weights", seed=2)
+    transposed = ResultRig(rig.rest, np.asfortranarray(rig.basis), rig.coefficients, names=rig.names)  # as the shell's
+    write_rig(tmp_path / "rig", transposed)
+    with open(tmp_path / "rig" / "basis.npy", "rb") as f:
+        np.lib.format.read_magic(f)
+        assert np.lib.format.read_array_header_1_0(f)[1] is True  # fortran_order: saved without a C copy
+    back = read_rig(tmp_path / "rig")
+    np.testing.assert_array_equal(np.asarray(back.basis), rig.basis)
+    np.testing.assert_array_equal(back.frames(), rig.frames())
+    np.testing.assert_array_equal(back.frames(2, 6), rig.frames(2, 6))
+
+
 @pytest.mark.parametrize("kind", ["vertex-weights", "shapes"])
 def test_int16_stays_within_its_stated_bound(kind, tmp_path):
     rig = _random_rig(kind, seed=3, n=400, K=12, T=30)

@@ -294,7 +294,9 @@ def write_rig(folder: str | os.PathLike[str], rig: ResultRig) -> dict[str, int]:
     if rig.basis_scale is not None:
         arrays["basis_scale.npy"] = rig.basis_scale
     for name, arr in arrays.items():
-        np.save(folder / name, np.ascontiguousarray(arr))
+        # a Fortran-ordered array (the shell's basis is the transpose of its (n, K) weights) is saved as
+        # it lies, in the format's fortran_order: a C-ordered copy of 0.26 GB cost 0.5 s at 700k vertices
+        np.save(folder / name, arr if arr.flags.f_contiguous else np.ascontiguousarray(arr))
     (folder / "rig.json").write_text(json.dumps(rig.to_dict(), indent=1))
     return {f"rig/{p.name}": p.stat().st_size for p in sorted(folder.iterdir())}
 
