@@ -261,10 +261,7 @@ def check_mesh(
     repeated = (F_ok[:, 0] == F_ok[:, 1]) | (F_ok[:, 1] == F_ok[:, 2]) | (F_ok[:, 2] == F_ok[:, 0])
     touches_nonfinite = ~(finite[F_ok[:, 0]] & finite[F_ok[:, 1]] & finite[F_ok[:, 2]])
     Vf = V if nonfinite.size == 0 else np.where(finite[:, None], V, 0.0)
-    P0, P1, P2 = (np.take(Vf, F_ok[:, j], axis=0) for j in range(3))  # take: faster than V[i]
-    e01, e12, e20 = P1 - P0, P2 - P1, P0 - P2
-    double_area = np.linalg.norm(np.cross(e01, -e20), axis=1)
-    longest_sq = np.maximum.reduce([np.einsum("ij,ij->i", e, e) for e in (e01, e12, e20)])
+    double_area, longest_sq = _double_area_and_longest_edge_sq(Vf, F_ok)
     thin = double_area <= deg_tol * longest_sq
     degenerate = ok_index[repeated | touches_nonfinite | thin]
 
@@ -295,10 +292,8 @@ def check_mesh(
         n_loops = int(np.unique(comp[boundary[:, 0]]).size)
 
     # sizes: bounding box, mean edge length of the usable edges
-    box = (
-        np.stack([V[finite].min(axis=0), V[finite].max(axis=0)])
-        if finite.any() else np.full((2, 3), np.nan)
-    )
+    seen = V if nonfinite.size == 0 else V[finite]
+    box = np.stack([seen.min(axis=0), seen.max(axis=0)]) if seen.size else np.full((2, 3), np.nan)
     usable = finite[unique_edges[:, 0]] & finite[unique_edges[:, 1]]
     ue = unique_edges[usable]
     mean_edge = (
@@ -330,3 +325,24 @@ def check_mesh(
         bounding_box=box,
         mean_edge_length=mean_edge,
     )
+
+
+def _double_area_and_longest_edge_sq(V: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per face, twice its area and its longest edge squared (finite ``V``).
+
+    One coordinate at a time on contiguous arrays: ``np.cross`` and row norms
+    on (m, 3) arrays took twice as long at 1.4M faces.
+    """
+    corners = [np.ascontiguousarray(F[:, j]) for j in range(3)]
+    edge_sq = [np.zeros(F.shape[0]) for _ in range(3)]
+    e01, e02 = [], []  # per coordinate
+    for c in range(3):
+        x = np.ascontiguousarray(V[:, c])
+        p0, p1, p2 = (np.take(x, i) for i in corners)
+        for total, d in zip(edge_sq, (p1 - p0, p2 - p1, p0 - p2)):
+            total += d * d
+        e01.append(p1 - p0)
+        e02.append(p2 - p0)
+    (ax, ay, az), (bx, by, bz) = e01, e02
+    cross_sq = (ay * bz - az * by) ** 2 + (az * bx - ax * bz) ** 2 + (ax * by - ay * bx) ** 2
+    return np.sqrt(cross_sq), np.maximum(np.maximum(edge_sq[0], edge_sq[1]), edge_sq[2])
