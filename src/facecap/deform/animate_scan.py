@@ -17,7 +17,7 @@ from ..errors import FacecapWarning, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
 from ..io.export_result import parse_export_formats
 from ..io.result_rig import ResultRig
-from ..io.write_performance import PerformanceWriter
+from ..io.write_performance import PerformanceWriter, import_writers
 from ..markers.condition_take import condition_take
 from ..markers.rigid_fit import rigid_fit
 from ..mesh.check_mesh import check_mesh
@@ -312,6 +312,7 @@ def animate_scan(
         # second thread beside the set-up, whose sparse solves keep one core busy, not two
         # (measured at 700k vertices). Not beside the conditioning: its BLAS calls use both cores.
         mesh_check_run = beside_setup.submit(_timed, check_mesh, scan.vertices, scan.faces)
+        beside_setup.submit(import_writers, exports)  # the USD library and matplotlib: 0.4 s at the end otherwise
         t = time.perf_counter()
         stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
         solver = ThinShellSolver(

@@ -11,7 +11,8 @@ In the order a user meets them:
   map, and :func:`match_correspondence` to line it up with a take's labels.
 - :class:`PerformanceWriter` (``write_performance.py``): the streamed output
   folder every command writes; :func:`read_performance_info` reads its
-  metadata back. :class:`UsdPerformanceWriter` (``write_usd.py``) is its USD
+  metadata back; :func:`import_writers` imports what its exports will need
+  ahead of time. :class:`UsdPerformanceWriter` (``write_usd.py``) is its USD
   export (usd-core is imported only when a USD file is written).
 - :func:`write_mdd` and :func:`write_pc2` (``write_point_cache.py``): streamed
   MDD and PC2 point caches (Blender's Mesh Cache modifier, 3ds Max's Point
@@ -49,7 +50,14 @@ from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_reg
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
 from .write_mesh import write_mesh
-from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, PerformanceWriter, file_sizes, read_performance_info
+from .write_performance import (
+    EXPORT_FORMATS,
+    STREAMED_FORMATS,
+    PerformanceWriter,
+    file_sizes,
+    import_writers,
+    read_performance_info,
+)
 from .write_usd import UsdPerformanceWriter
 from .write_point_cache import write_mdd, write_pc2
 from .write_alembic import write_alembic
@@ -85,6 +93,7 @@ __all__ = [
     "write_alembic",
     "STREAMED_FORMATS",
     "file_sizes",
+    "import_writers",
     "ResultRig",
     "write_rig",
     "read_rig",

@@ -42,7 +42,7 @@ from ..structures import Mesh
 from ..units import mm_per_unit
 from ._atomic import atomic_folder
 
-__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "read_performance_info", "file_sizes"]
+__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "import_writers", "read_performance_info", "file_sizes"]
 
 EXPORT_FORMATS = ("usd", "gltf", "mdd", "pc2", "abc", "obj", "ply")
 """Exports ``--export`` accepts besides ``vertices.npy`` and the rig."""
@@ -365,6 +365,31 @@ class PerformanceWriter:
                 pass
         if not self._finished:
             self._folder.__exit__(InputError, InputError("aborted"), None)
+
+
+_WRITER_MODULES = {
+    "usd": ("facecap.io.write_usd", "facecap.io.write_usd_blendshapes", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdSkel"),
+    "gltf": ("facecap.io.gltf_review",),
+}
+"""Modules each export's writers import when they start, beyond what every run needs."""
+
+
+def import_writers(exports: Iterable[str]) -> None:
+    """Import the modules :class:`PerformanceWriter` will need for ``exports`` and the run's report page.
+
+    For a caller with a core to spare before the writing starts: ``animate``
+    imports them beside the shell's set-up, where the USD libraries (0.12 s)
+    and matplotlib for the report's plots (0.25 s) otherwise came at the end.
+    Python's import lock makes a second import of the same module wait for
+    the first, so this may run on any thread.
+    """
+    import importlib
+
+    names = ["facecap.report.view_result", "facecap.report.html_report"]  # report.html: every run
+    for fmt in exports:
+        names.extend(_WRITER_MODULES.get(fmt, ()))
+    for name in names:
+        importlib.import_module(name)
 
 
 def file_sizes(folder: str | os.PathLike[str]) -> dict[str, int]:
