@@ -131,10 +131,10 @@ def test_bad_input(solver, layout) -> None:
 def test_the_golden_section_search(anatomy, model, layout) -> None:
     """The paper's search after every step: each trial a warm-started quasistatic solve, the best point kept."""
     searching = MuscleSolver(anatomy, layout.marker_vertices, layout.rest_markers, model=model, always_search=True,
-                             line_search_evaluations=4, max_steps=3)
+                             line_search_evaluations=3)
     c = _expression(np.random.default_rng(10), model)
     markers = forward_markers(model, searching.embedding, c).markers
     frame = searching.solve_frame(markers)
     assert frame.timings["line_search"] > 0
-    assert frame.quasistatic_solves >= 1 + 5 * frame.steps  # the start, then a full step and 4 trials per step
-    assert frame.rms_mm < 0.05 and np.abs(frame.activations - c.activations).mean() < 0.01
+    assert frame.quasistatic_solves >= 4 * frame.steps  # a full step and 3 trials per step
+    assert frame.rms_mm < 0.01 and np.abs(frame.activations - c.activations).mean() < 0.01

@@ -60,6 +60,8 @@ class MuscleModel:
     cranium_set, mandible_set : int64 arrays
         Dirichlet nodes moving with the cranium and with the mandible; the flesh model's
         ``dirichlet_nodes`` are the first then the second.
+    reused_last : bool
+        Whether the last :meth:`equilibrium` call returned the stored solution without solving.
     """
 
     def __init__(self, anatomy: Any, *, muscle_strength: FloatArray | None = None,
@@ -96,6 +98,7 @@ class MuscleModel:
         self.skin_follows: np.ndarray = np.abs(weights).max(axis=1) <= FOLLOWER_WEIGHT_LIMIT
         self._rest_skin = np.asarray(anatomy.skin_positions(), dtype=np.float64)
         self._last: tuple[FloatArray, FloatArray, QuasistaticResult] | None = None
+        self.reused_last = False
 
     @property
     def n_muscles(self) -> int:
@@ -121,10 +124,12 @@ class MuscleModel:
         if (last is not None and x0 is not None and np.array_equal(last[0], a) and np.array_equal(last[1], b)
                 and np.shape(x0) == last[2].positions.shape
                 and float(np.abs(np.asarray(x0) - last[2].positions).max()) <= 1e-9):
+            self.reused_last = True
             return last[2]._replace(iterations=0, projected_steps=0, inverted_tets_initial=last[2].inverted_tets,
                                     timings={key: 0.0 for key in last[2].timings})
         result = self.solver.solve(a, self.bone_positions(b), x0=x0)
         self._last = (a.copy(), b.copy(), result)
+        self.reused_last = False
         return result
 
     def mandible_velocities(self) -> FloatArray:

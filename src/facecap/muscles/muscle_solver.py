@@ -49,6 +49,8 @@ class MuscleFrame:
     steps : int
         Gauss-Newton steps taken.
     quasistatic_solves : int
+        Quasistatic solves run (a request at the controls and state of the last solve reuses it
+        and is not counted).
     newton_iterations : int
         Newton iterations summed over the quasistatic solves.
     inverted_tets : int
@@ -354,7 +356,7 @@ class MuscleSolver:
         t0 = time.perf_counter()
         result = self._solve_at(c, x)
         timings["linearise"] += time.perf_counter() - t0
-        solves, newton = 1, result.iterations
+        solves, newton = int(not self.model.reused_last), result.iterations
         x, inverted, not_converged = result.positions, result.inverted_tets, not result.converged
         phi, r = self._objective(c, x, targets, valid)
         while steps < max_steps:
@@ -369,7 +371,7 @@ class MuscleSolver:
             guess = self._predicted_nodes(x, c, c_new, dXa, dXb)
             result = self._solve_at(c_new, guess if not self.model.flesh.inverted_tets(guess).any() else x)
             timings["full_step"] += time.perf_counter() - t0
-            solves += 1
+            solves += not self.model.reused_last
             newton += result.iterations
             phi_new, _ = self._objective(c_new, result.positions, targets, valid)
             best = (1.0, phi_new, result)
@@ -384,7 +386,7 @@ class MuscleSolver:
             steps += 1
             if phi_best >= phi:  # no decrease along the step: keep the current controls
                 break
-            c = c + t_best * (c_new - c)
+            c = c_new if t_best == 1.0 else c + t_best * (c_new - c)  # the very controls solved at
             x = result_best.positions
             inverted, not_converged = result_best.inverted_tets, not result_best.converged
             decrease = phi - phi_best
@@ -396,7 +398,7 @@ class MuscleSolver:
             t0 = time.perf_counter()
             result = self._solve_at(c, x)
             timings["linearise"] += time.perf_counter() - t0
-            solves += 1
+            solves += not self.model.reused_last
             newton += result.iterations
             x = result.positions
         extra = []
@@ -430,7 +432,7 @@ class MuscleSolver:
             guess = (1 - w) * states[lower] + w * states[upper]
             ct = c + t * (c_new - c)
             result = self._solve_at(ct, guess)
-            solves += 1
+            solves += not self.model.reused_last
             newton += result.iterations
             states[t] = result.positions
             value = self._objective(ct, result.positions, targets, valid)[0]
