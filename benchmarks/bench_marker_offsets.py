@@ -11,10 +11,13 @@ frames, mm; an unstabilised result against the truth moved by the head motion).
 
 Rows, per case:
 
-- ``oracle``; ``today``: ``marker_offset_mm=0, rest_average_s=0`` (the markers taken to lie on the
-  skin, the warp's rest the rest frame alone: what animate did before this item);
+- ``oracle``; ``today``: ``marker_offset_mm=0, rest_average_s=0, temporal_sigma_s=0.02`` (the
+  markers taken to lie on the skin, the warp's rest the rest frame alone, the filter's fixed
+  window: what animate did before this item);
   ``offset``: only the offset (warp onto the lifted scan points, offset carried with the surface);
-  ``rest avg``: only the averaged rest; ``new``: both (the defaults).
+  ``rest avg``: only the averaged rest; ``sigma cv``: only the filter's temporal sigma chosen for the
+  take by cross-validation (``temporal_sigma_s='auto'``); ``offset + rest avg``: the defaults of
+  the release before the cross-validated sigma; ``new``: all three (the defaults).
 - Switch-offs, each re-generating the take with one cause removed (same seed, so the same
   everything else), run ``today`` and ``new``: ``noise 0`` (``noise_mm=0``), ``offset 0``
   (``marker_offset_mm=0``), ``gaps 0`` (``gap_fraction=0``), ``head still`` (no head rotation or
@@ -67,8 +70,11 @@ from facecap.report.evaluate_performance import evaluate_performance  # noqa: E4
 from facecap.synth.generate_performance import SyntheticCase  # noqa: E402
 
 N_FRAMES = 600
-TODAY = {"marker_offset_mm": 0.0, "rest_average_s": 0.0}
-METHODS = {"today": TODAY, "offset": {"rest_average_s": 0.0}, "rest avg": {"marker_offset_mm": 0.0}, "new": {}}
+TODAY = {"marker_offset_mm": 0.0, "rest_average_s": 0.0, "temporal_sigma_s": 0.02}  # animate before issue 9
+FIXED_SIGMA = {"temporal_sigma_s": 0.02}
+METHODS = {"today": TODAY, "offset": {"rest_average_s": 0.0, **FIXED_SIGMA},
+           "rest avg": {"marker_offset_mm": 0.0, **FIXED_SIGMA}, "sigma cv": {"marker_offset_mm": 0.0, "rest_average_s": 0.0},
+           "offset + rest avg": FIXED_SIGMA, "new": {}}
 SWITCH_OFFS: dict[str, dict[str, Any]] = {
     "noise 0": {"noise_mm": 0.0},
     "offset 0": {"marker_offset_mm": 0.0},

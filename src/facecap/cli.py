@@ -48,6 +48,8 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
              "per frame, the pose most markers agree on) or comma-separated labels [off]",
     )
     p.add_argument("--no-smooth", action="store_true", help="skip the spatio-temporal bilateral filter")
+    p.add_argument("--temporal-sigma", default="auto", type=_temporal_sigma,
+                   help="the filter's temporal sigma in s, or 'auto': chosen for the take by cross-validation [auto]")
     p.add_argument("--marker-offset", type=float, default=1.5,
                    help="marker centre height above the skin, mm; 0: markers on the skin (the paper) [1.5]")
     p.add_argument("--rest-average", type=float, default=0.1,
@@ -81,8 +83,8 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     result = animate_scan(
         scan, take, corr, args.out,
         rest_frame=args.rest_frame, ks=args.ks, kb=args.kb, stabilize=stabilize,
-        smooth=not args.no_smooth, marker_offset_mm=args.marker_offset, rest_average_s=args.rest_average,
-        **_output_options(args), unmarked_pieces=args.unmarked_pieces,
+        smooth=not args.no_smooth, temporal_sigma_s=args.temporal_sigma, marker_offset_mm=args.marker_offset,
+        rest_average_s=args.rest_average, **_output_options(args), unmarked_pieces=args.unmarked_pieces,
         batch_frames=args.batch_frames, precision=args.precision, progress=not args.quiet,
         extra_metadata={"map": str(args.map)},
     )
@@ -264,6 +266,18 @@ def _cmd_export(args: argparse.Namespace) -> int:
                               else name for name, size in entry.get("files", {}).items())
             print(f"{fmt}: {sizes}")
     return 0
+
+
+def _temporal_sigma(text: str) -> str | float:
+    if text == "auto":
+        return text
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = -1.0
+    if not (seconds >= 0 and seconds < float("inf")):
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a non-negative number of seconds, got {text!r}")
+    return seconds
 
 
 def _stabilize_option(value: str) -> bool | str | list[str]:

@@ -51,6 +51,8 @@ def _condition(take: MarkerSequence, conditioning: dict[str, Any]) -> Conditione
         take, rest_frame=int(conditioning.get("rest_frame", 0)), stabilize=stabilize,
         smooth=bool(conditioning.get("smooth", True)),
         head_motion_sigma_s=float(conditioning.get("head_motion_sigma_s", DEFAULT_HEAD_MOTION_SIGMA_S)),
+        # plans from before the cross-validated sigma were filtered at 0.02 s
+        temporal_sigma_s=conditioning.get("temporal_sigma_s", 0.02),
     )
 
 
@@ -120,9 +122,10 @@ def plan_scans(
         stabilize_setting = list(stabilize)
     conditioning: dict[str, Any] = {
         "rest_frame": rest_frame, "stabilize": stabilize_setting, "smooth": smooth,
-        "head_motion_sigma_s": DEFAULT_HEAD_MOTION_SIGMA_S,
+        "head_motion_sigma_s": DEFAULT_HEAD_MOTION_SIGMA_S, "temporal_sigma_s": "auto",
     }
     conditioned = _condition(take, conditioning)
+    conditioning["temporal_sigma_chosen_s"] = conditioned.temporal_sigma_s
     plan = select_scan_frames(
         conditioned.positions, tolerance=tolerance, max_frames=max_frames, rate=take.rate,
         first_frame=take.first_frame, progress=progress,

@@ -18,6 +18,7 @@ from ..io.read_correspondence import Correspondence, match_correspondence
 from ..io.export_result import parse_export_formats
 from ..io.result_rig import ResultRig
 from ..io.write_performance import PerformanceWriter, import_writers
+from ..markers.choose_temporal_sigma import TemporalSigmaChoice
 from ..markers.condition_take import condition_take
 from ..markers.rigid_fit import rigid_fit
 from ..mesh.check_mesh import check_mesh
@@ -64,6 +65,10 @@ class PreparedMarkers:
         Markers used for stabilisation.
     notes : list of str
         What was dropped, filled or ignored.
+    temporal_sigma_s : float or None
+        The bilateral filter's temporal sigma (s); None when not filtered.
+    temporal_sigma_choice : TemporalSigmaChoice or None
+        Its cross-validation, when it was chosen for the take.
     """
 
     labels: tuple[str, ...]
@@ -77,6 +82,8 @@ class PreparedMarkers:
     stabilization_residual: np.ndarray | None = None
     stable_labels: tuple[str, ...] = ()
     notes: list[str] = field(default_factory=list)
+    temporal_sigma_s: float | None = None
+    temporal_sigma_choice: TemporalSigmaChoice | None = None
 
 
 def prepare_markers(
@@ -87,6 +94,7 @@ def prepare_markers(
     rest_frame: int = 0,
     stabilize: bool | str | Sequence[str] = False,
     smooth: bool = True,
+    temporal_sigma_s: float | str = "auto",
 ) -> PreparedMarkers:
     """Match, gap-fill, stabilise and filter a take for :func:`animate_scan`.
 
@@ -105,6 +113,9 @@ def prepare_markers(
         automatically, a list of labels names them.
     smooth : bool, default True
         Apply the spatio-temporal bilateral filter (section 3).
+    temporal_sigma_s : float or 'auto', default 'auto'
+        Its temporal sigma in seconds, or chosen for the take by
+        cross-validation (see :func:`~facecap.markers.condition_take`).
 
     Returns
     -------
@@ -137,7 +148,8 @@ def prepare_markers(
         )
 
     conditioned = condition_take(
-        markers, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth, preferred_stable=ignored
+        markers, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth, preferred_stable=ignored,
+        temporal_sigma_s=temporal_sigma_s,
     )
     P = conditioned.positions
     P = P[:, columns]
@@ -168,6 +180,8 @@ def prepare_markers(
         stabilization_residual=conditioned.stabilization_residual,
         stable_labels=conditioned.stable_labels,
         notes=notes,
+        temporal_sigma_s=conditioned.temporal_sigma_s,
+        temporal_sigma_choice=conditioned.temporal_sigma_choice,
     )
 
 
@@ -198,6 +212,7 @@ def animate_scan(
     kb: float = DEFAULT_KB_MM2,
     stabilize: bool | str | Sequence[str] = False,
     smooth: bool = True,
+    temporal_sigma_s: float | str = "auto",
     marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
     rest_average_s: float = DEFAULT_REST_AVERAGE_S,
     exports: Iterable[str] = (),
@@ -238,6 +253,10 @@ def animate_scan(
         ``head_motion.npy`` and the USD export).
     smooth : bool, default True
         Spatio-temporal bilateral filtering of the markers.
+    temporal_sigma_s : float or 'auto', default 'auto'
+        The filter's temporal sigma, s, or chosen for the take by
+        cross-validation (:func:`~facecap.markers.choose_temporal_sigma`;
+        the choice and every candidate's score go into ``report.json``).
     marker_offset_mm : float, default 1.5
         Height of the marker centres above the skin, mm (the same meaning as
         ``register_scans``' option). The warp maps the rest markers onto the
@@ -304,7 +323,8 @@ def animate_scan(
         t = time.perf_counter()
         stage(f"conditioning {markers.n_frames} frames x {markers.n_markers} markers")
         prepared = prepare_markers(
-            markers, scan, correspondence, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth
+            markers, scan, correspondence, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth,
+            temporal_sigma_s=temporal_sigma_s,
         )
         timings["condition_markers_s"] = time.perf_counter() - t
 
@@ -363,7 +383,8 @@ def animate_scan(
         "rest_frame": rest_frame,
         "stabilized": head_pose is not None,
         "parameters": {
-            "ks": ks, "kb_mm2": kb, "smooth": smooth, "unmarked_pieces": unmarked_pieces,
+            "ks": ks, "kb_mm2": kb, "smooth": smooth, "temporal_sigma_s": prepared.temporal_sigma_s,
+            "unmarked_pieces": unmarked_pieces,
             "marker_offset_mm": offsets.marker_offset_mm, "offset_iterations": offsets.iterations,
             "rest_average_s": float(rest_average_s),
             "stable_markers": list(prepared.stable_labels), "backend": solver.backend,
@@ -413,6 +434,7 @@ def animate_scan(
             "conditioning_mm": {
                 "per_frame_rms_change": _rms_change(prepared.raw_positions, prepared.positions, prepared).tolist(),
             },
+            "temporal_sigma": _sigma_report(prepared),
             "filled_samples": int(prepared.filled.sum()),
             "stabilization_residual_mm": None
             if prepared.stabilization_residual is None
@@ -424,6 +446,18 @@ def animate_scan(
         metadata["timings"] = timings
         final = writer.finish(metadata)
     return AnimationResult(out_dir=final, report=report)
+
+
+def _sigma_report(prepared: PreparedMarkers) -> dict[str, Any] | None:
+    """The filter's temporal sigma for ``report.json``: the value, and how it was chosen where it was."""
+    if prepared.temporal_sigma_s is None:
+        return None
+    choice = prepared.temporal_sigma_choice
+    if choice is None:
+        return {"sigma_s": prepared.temporal_sigma_s, "chosen_by": "given"}
+    return {"sigma_s": choice.sigma_s, "chosen_by": "leave-self-out cross-validation",
+            "candidates_s": list(choice.candidates_s), "scores_mm2": [round(x, 6) for x in choice.scores_mm2],
+            "scored_frames": choice.scored_frames}
 
 
 def _timed(function: Any, *args: Any) -> tuple[Any, float]:

@@ -68,7 +68,8 @@ def write_conditioned_take(
         "labels": np.asarray(list(labels), dtype=str),
         "meta": np.asarray(json.dumps({"format": CONDITIONED_TAKE_FORMAT, "version": 1, "rate": float(rate),
                                        "settings": settings, "source_sha256": source_sha256,
-                                       "stable_labels": list(conditioned.stable_labels)})),
+                                       "stable_labels": list(conditioned.stable_labels),
+                                       "temporal_sigma_s": conditioned.temporal_sigma_s})),
     }
     if conditioned.head_rotations is not None:
         arrays["head_rotations"] = np.asarray(conditioned.head_rotations, dtype=np.float64)
@@ -107,6 +108,7 @@ def read_conditioned_take(path: str | os.PathLike[str]) -> tuple[ConditionedTake
                 head_translations=data["head_translations"] if rotations is not None else None,
                 stabilization_residual=data["stabilization_residual"] if rotations is not None else None,
                 stable_labels=tuple(meta.get("stable_labels", ())),
+                temporal_sigma_s=meta.get("temporal_sigma_s"),
             )
             meta["labels"] = tuple(str(s) for s in data["labels"])
     except FileNotFoundError:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import warnings
+from typing import NamedTuple
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -14,6 +15,140 @@ from ..validate import as_marker_positions, as_positive
 __all__ = ["bilateral_filter"]
 
 _CHUNK_ELEMENTS = 10_000  # (frames x markers) per block: keeps the working set in cache
+
+
+class _FilterSetup(NamedTuple):
+    """What the filter's weighted sums need, for one set of sigmas (see :func:`bilateral_filter`)."""
+
+    valid: np.ndarray  # (T, M) bool
+    ref: np.ndarray  # (M, 3) rest configuration
+    U: np.ndarray  # (3, T, M) displacements from ref, 0 at gaps
+    Upad: np.ndarray  # (3, T + 2W, M)
+    Vpad: np.ndarray  # (T + 2W, M) validity as float
+    nbr: np.ndarray  # (M, K) spatial neighbours, slot 0 the marker itself
+    g_s: np.ndarray  # (M, K) their spatial weights (1 in slot 0)
+    taus: np.ndarray  # (2W + 1,) frame offsets
+    g_t: np.ndarray  # (2W + 1,) temporal weights (1 at offset 0)
+    W: int
+    neg_inv2r: float | None
+
+
+def _rest_configuration(P: np.ndarray, valid: np.ndarray, rest: int, sigma_rest: float,
+                        cut: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(ref (M, 3), has_rest (M,))``: each marker's rest position and whether it is seen near the rest frame.
+
+    Anchored at (or nearest to) the rest frame, Gaussian-averaged around it;
+    warns about markers not seen within the rest window.
+    """
+    T, M, _ = P.shape
+    W_rest = int(cut * sigma_rest + 0.5)
+    lo, hi = max(0, rest - W_rest), min(T, rest + W_rest + 1)
+    offs = np.arange(lo, hi) - rest
+    win = valid[lo:hi]
+    near = np.argmin(np.where(win, np.abs(offs)[:, None], T + 1), axis=0)
+    has_rest = win.any(axis=0)
+    anchor_frame = np.where(has_rest, lo + near, np.argmax(valid, axis=0))
+    anchor = P[anchor_frame, np.arange(M)]
+    g_win = np.exp(-0.5 * (offs / sigma_rest) ** 2) if sigma_rest > 0 else (offs == 0) * 1.0
+    g_win = g_win[:, None] * win
+    dev = np.where(win[..., None], P[lo:hi] - anchor[None], 0.0)
+    den_rest = g_win.sum(axis=0)
+    ref = anchor + np.einsum("tm,tmd->md", g_win, dev) / np.where(den_rest > 0, den_rest, 1.0)[:, None]
+    lost = valid.any(axis=0) & ~has_rest
+    if np.any(lost):
+        warnings.warn(
+            f"bilateral_filter: {int(lost.sum())} marker(s) not visible within {W_rest} frames of "
+            f"rest_frame {rest} (columns {np.flatnonzero(lost)[:10].tolist()}...); "
+            "they are filtered in time only",
+            FacecapWarning,
+            stacklevel=3,  # the caller of bilateral_filter (or of choose_temporal_sigma)
+        )
+    return ref, has_rest
+
+
+def _filter_setup(P: np.ndarray, sigma_t: float, sigma_s: float, sigma_r: float | None, cut: float,
+                  rest_state: tuple[np.ndarray, np.ndarray]) -> _FilterSetup:
+    """Spatial neighbours and padded displacements of a validated take (or a stretch of one) about its rest."""
+    T, M, _ = P.shape
+    valid = ~np.isnan(P).any(axis=2)
+    W = int(cut * sigma_t + 0.5)  # the window radius scipy.ndimage.gaussian_filter1d uses
+    taus = np.arange(-W, W + 1)
+    g_t = np.exp(-0.5 * (taus / sigma_t) ** 2) if sigma_t > 0 else np.ones(1)
+    ref, has_rest = rest_state
+    spatial_ok = has_rest
+
+    # spatial neighbours: slot 0 is the marker itself
+    nbr_lists = [[i] for i in range(M)]
+    wt_lists = [[1.0] for _ in range(M)]
+    if sigma_s > 0 and np.count_nonzero(spatial_ok) > 1:
+        ok = np.flatnonzero(spatial_ok)
+        tree = cKDTree(ref[ok])
+        pairs = tree.query_pairs(cut * sigma_s, output_type="ndarray")
+        if pairs.size:
+            a, b = ok[pairs[:, 0]], ok[pairs[:, 1]]
+            d = np.linalg.norm(ref[a] - ref[b], axis=1)
+            g = np.exp(-0.5 * (d / sigma_s) ** 2)
+            for x, y, gw in zip(a.tolist(), b.tolist(), g.tolist()):
+                nbr_lists[x].append(y)
+                wt_lists[x].append(gw)
+                nbr_lists[y].append(x)
+                wt_lists[y].append(gw)
+    K = max(len(n) for n in nbr_lists)
+    nbr = np.zeros((M, K), dtype=np.int64)
+    g_s = np.zeros((M, K))
+    for i in range(M):
+        nbr[i, : len(nbr_lists[i])] = nbr_lists[i]
+        g_s[i, : len(wt_lists[i])] = wt_lists[i]
+
+    # components first, (3, T, M): the per-component arithmetic runs on contiguous planes
+    U = np.where(valid[..., None], P - ref[None], 0.0).transpose(2, 0, 1).copy()
+    Upad = np.zeros((3, T + 2 * W, M))
+    Upad[:, W : W + T] = U
+    Vpad = np.zeros((T + 2 * W, M))
+    Vpad[W : W + T] = valid
+    neg_inv2r = None if sigma_r is None else -0.5 / sigma_r**2
+    return _FilterSetup(valid, ref, U, Upad, Vpad, nbr, g_s, taus, g_t, W, neg_inv2r)
+
+
+def _weighted_sums(setup: _FilterSetup, frame_ranges: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
+    """The filter's numerator (3, T, M) and denominator (T, M), filled for the frames of ``frame_ranges`` only."""
+    valid, U, Upad, Vpad, nbr, g_s = setup.valid, setup.U, setup.Upad, setup.Vpad, setup.nbr, setup.g_s
+    taus, g_t, W, neg_inv2r = setup.taus, setup.g_t, setup.W, setup.neg_inv2r
+    T, M = valid.shape
+    K = nbr.shape[1]
+    num = np.zeros((3, T, M))
+    den = np.zeros((T, M))
+    for k in range(K):
+        cols = np.flatnonzero(g_s[:, k] > 0)
+        if cols.size == 0:
+            continue
+        Uk = Upad[:, :, nbr[cols, k]]
+        Vk = Vpad[:, nbr[cols, k]] * g_s[cols, k][None, :]
+        step = max(1, _CHUNK_ELEMENTS // cols.size)
+        chunks = [(c0, min(stop, c0 + step)) for first, stop in frame_ranges for c0 in range(first, stop, step)]
+        for c0, c1 in chunks:
+            Uc = U[:, c0:c1, cols]
+            num_c = np.zeros_like(Uc)
+            den_c = np.zeros(Uc.shape[1:])
+            tmp = np.empty_like(Uc)
+            for tau, gt in zip(taus.tolist(), g_t.tolist()):
+                X = Uk[:, W + c0 + tau : W + c1 + tau]
+                w = Vk[W + c0 + tau : W + c1 + tau] * gt
+                if neg_inv2r is not None:
+                    np.subtract(X, Uc, out=tmp)
+                    np.multiply(tmp, tmp, out=tmp)
+                    d2 = tmp[0] + tmp[1]
+                    d2 += tmp[2]
+                    d2 *= neg_inv2r
+                    np.exp(d2, out=d2)
+                    w *= d2
+                den_c += w
+                np.multiply(w, X, out=tmp)
+                num_c += tmp
+            num[:, c0:c1, cols] += num_c
+            den[c0:c1, cols] += den_c
+
+    return num, den
 
 
 def _frame_index(value: object, n_frames: int, *, name: str) -> int:
@@ -182,100 +317,9 @@ def bilateral_filter(
     rest_average = as_positive(rest_average, name="rest_average", allow_zero=True)
 
     valid = ~np.isnan(P).any(axis=2)
-    W = int(cut * sigma_t + 0.5)  # the window radius scipy.ndimage.gaussian_filter1d uses
-    taus = np.arange(-W, W + 1)
-    g_t = np.exp(-0.5 * (taus / sigma_t) ** 2) if sigma_t > 0 else np.ones(1)
-
-    # rest configuration: anchored at (or nearest to) the rest frame, Gaussian-averaged around it
-    sigma_rest = rest_average * sigma_t
-    W_rest = int(cut * sigma_rest + 0.5)
-    lo, hi = max(0, rest - W_rest), min(T, rest + W_rest + 1)
-    offs = np.arange(lo, hi) - rest
-    win = valid[lo:hi]
-    near = np.argmin(np.where(win, np.abs(offs)[:, None], T + 1), axis=0)
-    has_rest = win.any(axis=0)
-    anchor_frame = np.where(has_rest, lo + near, np.argmax(valid, axis=0))
-    anchor = P[anchor_frame, np.arange(M)]
-    g_win = np.exp(-0.5 * (offs / sigma_rest) ** 2) if sigma_rest > 0 else (offs == 0) * 1.0
-    g_win = g_win[:, None] * win
-    dev = np.where(win[..., None], P[lo:hi] - anchor[None], 0.0)
-    den_rest = g_win.sum(axis=0)
-    ref = anchor + np.einsum("tm,tmd->md", g_win, dev) / np.where(den_rest > 0, den_rest, 1.0)[:, None]
-    seen = valid.any(axis=0)
-    lost = seen & ~has_rest
-    if np.any(lost):
-        warnings.warn(
-            f"bilateral_filter: {int(lost.sum())} marker(s) not visible within {W_rest} frames of "
-            f"rest_frame {rest} (columns {np.flatnonzero(lost)[:10].tolist()}...); "
-            "they are filtered in time only",
-            FacecapWarning,
-            stacklevel=2,
-        )
-    spatial_ok = has_rest
-
-    # spatial neighbours: slot 0 is the marker itself
-    nbr_lists = [[i] for i in range(M)]
-    wt_lists = [[1.0] for _ in range(M)]
-    if sigma_s > 0 and np.count_nonzero(spatial_ok) > 1:
-        ok = np.flatnonzero(spatial_ok)
-        tree = cKDTree(ref[ok])
-        pairs = tree.query_pairs(cut * sigma_s, output_type="ndarray")
-        if pairs.size:
-            a, b = ok[pairs[:, 0]], ok[pairs[:, 1]]
-            d = np.linalg.norm(ref[a] - ref[b], axis=1)
-            g = np.exp(-0.5 * (d / sigma_s) ** 2)
-            for x, y, gw in zip(a.tolist(), b.tolist(), g.tolist()):
-                nbr_lists[x].append(y)
-                wt_lists[x].append(gw)
-                nbr_lists[y].append(x)
-                wt_lists[y].append(gw)
-    K = max(len(n) for n in nbr_lists)
-    nbr = np.zeros((M, K), dtype=np.int64)
-    g_s = np.zeros((M, K))
-    for i in range(M):
-        nbr[i, : len(nbr_lists[i])] = nbr_lists[i]
-        g_s[i, : len(wt_lists[i])] = wt_lists[i]
-
-    # components first, (3, T, M): the per-component arithmetic runs on contiguous planes
-    U = np.where(valid[..., None], P - ref[None], 0.0).transpose(2, 0, 1).copy()
-    Upad = np.zeros((3, T + 2 * W, M))
-    Upad[:, W : W + T] = U
-    Vpad = np.zeros((T + 2 * W, M))
-    Vpad[W : W + T] = valid
-    num = np.zeros((3, T, M))
-    den = np.zeros((T, M))
-    neg_inv2r = None if sigma_r is None else -0.5 / sigma_r**2
-
-    for k in range(K):
-        cols = np.flatnonzero(g_s[:, k] > 0)
-        if cols.size == 0:
-            continue
-        Uk = Upad[:, :, nbr[cols, k]]
-        Vk = Vpad[:, nbr[cols, k]] * g_s[cols, k][None, :]
-        step = max(1, _CHUNK_ELEMENTS // cols.size)
-        for c0 in range(0, T, step):
-            c1 = min(T, c0 + step)
-            Uc = U[:, c0:c1, cols]
-            num_c = np.zeros_like(Uc)
-            den_c = np.zeros(Uc.shape[1:])
-            tmp = np.empty_like(Uc)
-            for tau, gt in zip(taus.tolist(), g_t.tolist()):
-                X = Uk[:, W + c0 + tau : W + c1 + tau]
-                w = Vk[W + c0 + tau : W + c1 + tau] * gt
-                if neg_inv2r is not None:
-                    np.subtract(X, Uc, out=tmp)
-                    np.multiply(tmp, tmp, out=tmp)
-                    d2 = tmp[0] + tmp[1]
-                    d2 += tmp[2]
-                    d2 *= neg_inv2r
-                    np.exp(d2, out=d2)
-                    w *= d2
-                den_c += w
-                np.multiply(w, X, out=tmp)
-                num_c += tmp
-            num[:, c0:c1, cols] += num_c
-            den[c0:c1, cols] += den_c
-
+    setup = _filter_setup(P, sigma_t, sigma_s, sigma_r, cut, _rest_configuration(P, valid, rest, rest_average * sigma_t, cut))
+    num, den = _weighted_sums(setup, [(0, T)])
+    valid, ref = setup.valid, setup.ref
     ubar = (num / np.where(den > 0, den, 1.0)).transpose(1, 2, 0)
     out = np.ascontiguousarray(ref[None] + ubar)
     out[~valid] = np.nan

@@ -11,6 +11,7 @@ import numpy as np
 from ..errors import FacecapWarning, MarkerError
 from ..structures import MarkerSequence
 from .bilateral_filter import bilateral_filter
+from .choose_temporal_sigma import TemporalSigmaChoice, choose_temporal_sigma
 from .fill_gaps import fill_gaps
 from .rigid_fit import RigidTransform
 from .consensus_stabilize import consensus_stabilize
@@ -42,6 +43,11 @@ class ConditionedTake:
         RMS misfit of the stable markers after stabilisation.
     stable_labels : tuple of str
         Markers the stabilisation used.
+    temporal_sigma_s : float or None
+        The bilateral filter's temporal sigma (s); None where the take was not filtered.
+    temporal_sigma_choice : TemporalSigmaChoice or None
+        How it was chosen, when it was (``temporal_sigma_s='auto'``): every
+        candidate's cross-validation score.
     """
 
     positions: np.ndarray
@@ -50,6 +56,8 @@ class ConditionedTake:
     head_translations: np.ndarray | None
     stabilization_residual: np.ndarray | None
     stable_labels: tuple[str, ...]
+    temporal_sigma_s: float | None = None
+    temporal_sigma_choice: TemporalSigmaChoice | None = None
 
 
 def condition_take(
@@ -60,6 +68,7 @@ def condition_take(
     smooth: bool = True,
     preferred_stable: Sequence[str] = (),
     head_motion_sigma_s: float = DEFAULT_HEAD_MOTION_SIGMA_S,
+    temporal_sigma_s: float | str = "auto",
 ) -> ConditionedTake:
     """Fill gaps, optionally remove head motion, then filter (Bickel 2007, section 3).
 
@@ -86,6 +95,12 @@ def condition_take(
         of a degree, which moves the whole face; head motion is smoother than
         that, and local cubic fits follow even a fast nod. 0 applies the raw
         per-frame fits.
+    temporal_sigma_s : float or 'auto', default 'auto'
+        The bilateral filter's temporal sigma, s. ``'auto'`` chooses it for
+        this take by cross-validation (:func:`choose_temporal_sigma`: each
+        sample predicted from its neighbours in time and space, the
+        candidate that predicts best), after stabilisation; 0.02 is the
+        fixed value of earlier releases.
 
     Returns
     -------
@@ -123,8 +138,16 @@ def condition_take(
             if head_motion_sigma_s > 0:
                 stab = _smooth_stabilization(stab, filled.positions, head_motion_sigma_s * markers.rate, rest_frame)
             P = stab.positions
+    sigma, choice = None, None
     if smooth:
-        P = bilateral_filter(P, rate=markers.rate, rest_frame=rest_frame)
+        if isinstance(temporal_sigma_s, str):
+            if temporal_sigma_s != "auto":
+                raise MarkerError(f"temporal_sigma_s: expected a number of seconds or 'auto', got {temporal_sigma_s!r}")
+            choice = choose_temporal_sigma(P, rate=markers.rate, rest_frame=rest_frame)
+            sigma = choice.sigma_s
+        else:
+            sigma = float(temporal_sigma_s)
+        P = bilateral_filter(P, rate=markers.rate, rest_frame=rest_frame, temporal_sigma_s=sigma)
     return ConditionedTake(
         positions=P,
         filled=filled.filled_mask,
@@ -132,6 +155,8 @@ def condition_take(
         head_translations=None if stab is None else stab.translations,
         stabilization_residual=None if stab is None else stab.residual_rms,
         stable_labels=() if stab is None else tuple(markers.labels[i] for i in stab.stable_markers),
+        temporal_sigma_s=sigma,
+        temporal_sigma_choice=choice,
     )
 
 
