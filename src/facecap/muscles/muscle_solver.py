@@ -149,6 +149,13 @@ class MuscleSolver:
         Passed to :class:`MuscleModel` (``muscle_strength``, ``material``, ``fibre``, ``jaw``,
         ``rim``, ``backend``, ``tolerance``).
 
+    Attributes
+    ----------
+    model : MuscleModel
+        The face driven by the controls (its solver holds the last equilibrium's factor).
+    embedding : MarkerEmbedding
+        The markers in the flesh mesh, with their rest offsets.
+
     Raises
     ------
     InputError, CorrespondenceError
