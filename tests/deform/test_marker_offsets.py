@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facecap.deform.animate_scan import animate_scan
-from facecap.deform.marker_offsets import MarkerOffsets
+from facecap.deform.marker_offsets import MarkerOffsets, marker_ring
 from facecap.deform.thin_shell import ThinShellSolver
 from facecap.errors import FacecapWarning, InputError
 from facecap.io import read_correspondence
@@ -78,6 +78,14 @@ def test_fixed_point_and_normals_against_a_slow_reference():
     marker = skin + H * (reference - offsets.rest_normals[None])
     assert np.abs(offsets.skin_displacements(marker) - skin).max() < 0.02 * np.abs(marker - skin).max()
     assert np.array_equal(MarkerOffsets(V, F, shell, marker_offset_mm=0.0).skin_displacements(marker), marker)
+    # the mesh side built before the shell (marker_ring, from V, F and the marker vertices alone) gives the same
+    ring = marker_ring(V, F, mv)
+    np.testing.assert_allclose(ring.rest_normals, _reference_normals(V, F, mv), atol=1e-6)
+    early = MarkerOffsets(V, F, shell, marker_offset_mm=H, ring=ring)
+    assert np.array_equal(early.rest_normals, offsets.rest_normals)
+    assert np.array_equal(early.skin_displacements(marker), offsets.skin_displacements(marker))
+    with pytest.raises(InputError, match="other marker vertices"):
+        MarkerOffsets(V, F, shell, ring=marker_ring(V, F, mv[:-1]))
 
 
 def test_bad_input_is_named():

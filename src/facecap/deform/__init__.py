@@ -13,7 +13,9 @@ In the order a user meets them:
 - :class:`BasisProduct` (``basis_product.py``): the per-frame dense product
   (the hot path) in float32 or int16 fixed point.
 - :class:`MarkerOffsets` (``marker_offsets.py``): marker displacements to skin
-  displacements, the markers' height above the skin carried with the surface.
+  displacements, the markers' height above the skin carried with the surface;
+  :func:`marker_ring` its mesh side (the triangles round the markers, the scan's
+  normals there), which needs no shell.
 - :class:`SpdFactor` (``factor_spd.py``): the sparse SPD factorisation
   (PARDISO, or SciPy's SuperLU where MKL is missing).
 - :func:`rbf_deformation_basis` (``rbf_deform.py``): the warp alone, the
@@ -32,7 +34,7 @@ from __future__ import annotations
 from .animate_scan import AnimationResult, PreparedMarkers, animate_scan, prepare_markers
 from .basis_product import BasisProduct, Precision
 from .factor_spd import SpdFactor, available_backends
-from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, DEFAULT_OFFSET_ITERATIONS, MarkerOffsets
+from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, DEFAULT_OFFSET_ITERATIONS, MarkerOffsets, MarkerRing, marker_ring
 from .principal_targets import PrincipalTargets, principal_targets, principal_targets_from_rig
 from .rbf_deform import rbf_deformation_basis
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, PieceReport, ThinShellSolver, thin_shell_deform
@@ -52,6 +54,8 @@ __all__ = [
     "BasisProduct",
     "Precision",
     "MarkerOffsets",
+    "MarkerRing",
+    "marker_ring",
     "DEFAULT_MARKER_OFFSET_MM",
     "DEFAULT_OFFSET_ITERATIONS",
     "SpdFactor",

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..errors import FacecapWarning, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
@@ -27,9 +28,9 @@ from ..units import check_take_units, mm_per_unit
 from ..validate import as_positive
 from .basis_product import Precision
 from .factor_spd import Backend
-from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, MarkerOffsets
+from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, MarkerOffsets, MarkerRing, marker_ring
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces
-from .triharmonic_warp import TriharmonicWarp
+from .triharmonic_warp import TriharmonicWarp, check_warp_sources
 
 __all__ = ["animate_scan", "AnimationResult", "prepare_markers", "PreparedMarkers"]
 
@@ -328,29 +329,28 @@ def animate_scan(
         )
         timings["condition_markers_s"] = time.perf_counter() - t
 
-        # The mesh check only reports (the shell handles what it finds on its own): it runs on a
-        # second thread beside the set-up, whose sparse solves keep one core busy, not two
-        # (measured at 700k vertices). Not beside the conditioning: its BLAS calls use both cores.
+        rest_markers = check_warp_sources(_rest_markers(prepared.positions, rest_frame, rest_average_s * markers.rate))
+
+        # Beside the set-up, on a second thread: its sparse solves keep one core busy, not two (measured
+        # at 700k vertices). The mesh check (a report only: the shell handles what it finds on its own),
+        # the writers' imports (the USD library and matplotlib: 0.4 s at the end otherwise), and the
+        # marker side: the mesh round the markers, the warp and every frame through it. Not beside the
+        # conditioning: its BLAS calls use both cores.
         mesh_check_run = beside_setup.submit(_timed, check_mesh, scan.vertices, scan.faces)
-        beside_setup.submit(import_writers, exports)  # the USD library and matplotlib: 0.4 s at the end otherwise
+        beside_setup.submit(import_writers, exports)
+        marker_side_run = beside_setup.submit(_timed, _marker_side, scan, prepared, rest_markers, marker_offset_mm)
         t = time.perf_counter()
         stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
         solver = ThinShellSolver(
             scan.vertices, scan.faces, prepared.constrained_vertices,
             ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
         )
-        offsets = MarkerOffsets(scan.vertices, scan.faces, solver, marker_offset_mm=marker_offset_mm)
-        timings["shell_setup_s"] = time.perf_counter() - t
+        (ring, centres, warp, face_markers), timings["correspondence_warp_s"] = marker_side_run.result()
+        offsets = MarkerOffsets(scan.vertices, scan.faces, solver, marker_offset_mm=marker_offset_mm, ring=ring)
+        timings["shell_setup_s"] = time.perf_counter() - t  # the shell and the offsets' part of it that needs it
         mesh_check, timings["check_mesh_s"] = mesh_check_run.result()
-
-        t = time.perf_counter()
-        rest_markers = _rest_markers(prepared.positions, rest_frame, rest_average_s * markers.rate)
-        centres = prepared.scan_points + offsets.marker_offset_mm * offsets.rest_normals  # markers at rest, face space
-        warp = TriharmonicWarp(rest_markers, centres)
-        face_markers = warp(prepared.positions)  # (T, K, 3), face space
         marker_displacements = face_markers - centres[None]
         loo = warp.leave_one_out_residuals()
-        timings["correspondence_warp_s"] = time.perf_counter() - t
 
         t = time.perf_counter()
         displacements = offsets.skin_displacements(marker_displacements)
@@ -458,6 +458,23 @@ def _sigma_report(prepared: PreparedMarkers) -> dict[str, Any] | None:
     return {"sigma_s": choice.sigma_s, "chosen_by": "leave-self-out cross-validation",
             "candidates_s": list(choice.candidates_s), "scores_mm2": [round(x, 6) for x in choice.scores_mm2],
             "scored_frames": choice.scored_frames}
+
+
+def _marker_side(scan: Mesh, prepared: PreparedMarkers, rest_markers: np.ndarray,
+                 marker_offset_mm: float) -> tuple[MarkerRing, np.ndarray, TriharmonicWarp, np.ndarray]:
+    """What the markers need of the scan, no shell: ``(ring, centres, warp, face_markers)``.
+
+    The triangles round the marker vertices with the scan's normals there,
+    the markers at rest in face space (the scan points lifted by the offset),
+    the warp onto them and every frame's markers through it (T, K, 3). One
+    BLAS thread: this runs beside the shell's set-up, where a second OpenBLAS
+    thread would only contend for the core PARDISO's solves use.
+    """
+    with threadpool_limits(limits={"openblas": 1}):
+        ring = marker_ring(scan.vertices, scan.faces, prepared.constrained_vertices)
+        centres = prepared.scan_points + marker_offset_mm * ring.rest_normals
+        warp = TriharmonicWarp(rest_markers, centres)
+        return ring, centres, warp, warp(prepared.positions)
 
 
 def _timed(function: Any, *args: Any) -> tuple[Any, float]:

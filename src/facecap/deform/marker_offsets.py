@@ -23,6 +23,8 @@ frame, a (ring x K) product instead of the shell's (n x K).
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -33,7 +35,7 @@ from ..validate import as_faces, as_positive, as_vertices
 from .basis_product import BasisProduct
 from .thin_shell import ThinShellSolver
 
-__all__ = ["MarkerOffsets", "DEFAULT_MARKER_OFFSET_MM", "DEFAULT_OFFSET_ITERATIONS"]
+__all__ = ["MarkerOffsets", "MarkerRing", "marker_ring", "DEFAULT_MARKER_OFFSET_MM", "DEFAULT_OFFSET_ITERATIONS"]
 
 DEFAULT_MARKER_OFFSET_MM = 1.5
 """Marker centre above the skin, mm: half a 3 mm marker glued on (as ``register_scans`` assumes)."""
@@ -43,6 +45,82 @@ DEFAULT_OFFSET_ITERATIONS = 2
 
 # Frames per vectorised step: keeps the (faces, 3, frames) temporaries in cache.
 _CHUNK_FRAMES = 64
+
+
+class MarkerRing(NamedTuple):
+    """The triangles round each marker vertex, welded across UV seams: the mesh side of :class:`MarkerOffsets`."""
+
+    marker_vertices: np.ndarray
+    """(K,) int64: the marker vertices, in order."""
+    ring_vertices: np.ndarray
+    """(r,) int64: the vertices of those triangles (their rows of the shell's basis)."""
+    local_faces: np.ndarray
+    """(f, 3) int64: the triangles, as indices into ``ring_vertices``."""
+    scatter: sp.csr_matrix
+    """(K, f): which triangles are round which marker vertex."""
+    rest_normals: np.ndarray
+    """(K, 3) float64: the scan's unit area-weighted normal at each marker vertex."""
+
+
+def marker_ring(V: FloatArray, F: IntArray, marker_vertices: IntArray) -> MarkerRing:
+    """The triangles round each marker vertex and the scan's normal there, from the mesh alone.
+
+    What :class:`MarkerOffsets` needs of the mesh, before any shell exists
+    (``animate`` builds it beside the shell's set-up, and the warp its rest
+    normals give); pass it as ``MarkerOffsets(..., ring=...)``.
+
+    Raises
+    ------
+    InputError
+        On bad arrays, a marker vertex in no triangle, or one whose triangles are all degenerate.
+    """
+    V = as_vertices(V)
+    F = as_faces(F, V.shape[0])
+    c = np.asarray(marker_vertices, dtype=np.int64).ravel()
+    if c.size == 0 or c.min() < 0 or c.max() >= V.shape[0]:
+        raise InputError(f"marker_vertices: expected indices in [0, {V.shape[0]}), got {c.tolist()[:10]}")
+    K = c.size
+    _, Fw, welded_index = weld_duplicate_vertices(V, F)
+    marker_of = np.full(int(welded_index.max()) + 1, -1, dtype=np.int64)
+    marker_of[welded_index[c]] = np.arange(K)
+    at_marker = marker_of[Fw]  # (m, 3): marker owning each corner, -1 if none
+    ring_faces = np.flatnonzero((at_marker >= 0).any(axis=1))
+    corners = F[ring_faces]  # original indices: their rows of the basis
+    owners = at_marker[ring_faces]
+    hit = owners >= 0
+    S = sp.csr_matrix(
+        (np.ones(int(hit.sum())), (owners[hit], np.broadcast_to(np.arange(ring_faces.size)[:, None], owners.shape)[hit])),
+        shape=(K, ring_faces.size),
+    )
+    missing = np.flatnonzero(np.diff(S.indptr) == 0)
+    if missing.size:
+        raise InputError(f"marker vertices in no triangle: {c[missing].tolist()}")
+    ring, local = np.unique(corners, return_inverse=True)
+    local = local.reshape(corners.shape)
+    rest = V[ring].astype(np.float32)[None]  # the float32 ring positions the deformed normals start from
+    rest_normals = _ring_normals(rest, local, S, K)[0]
+    if not np.isfinite(rest_normals).all():
+        bad = c[~np.isfinite(rest_normals).all(axis=1)]
+        raise InputError(f"marker vertices with degenerate triangles only (no normal): {bad.tolist()}")
+    return MarkerRing(c, ring, local, S, rest_normals)
+
+
+def _ring_normals(X: np.ndarray, faces: np.ndarray, scatter: sp.csr_matrix, n_markers: int) -> np.ndarray:
+    """Area-weighted unit normals (t, K, 3) at the marker vertices, the ring's vertices at ``X`` (t, r, 3) float32."""
+    t, f = X.shape[0], faces.shape[0]
+    a = X[:, faces[:, 0]]
+    u = (X[:, faces[:, 1]] - a).transpose(2, 1, 0)  # (3, faces, t): each triangle's two edges
+    w = (X[:, faces[:, 2]] - a).transpose(2, 1, 0)
+    fn = np.empty((f, 3, t), np.float32)  # the cross product, component by component
+    np.multiply(u[1], w[2], out=fn[:, 0])
+    fn[:, 0] -= u[2] * w[1]
+    np.multiply(u[2], w[0], out=fn[:, 1])
+    fn[:, 1] -= u[0] * w[2]
+    np.multiply(u[0], w[1], out=fn[:, 2])
+    fn[:, 2] -= u[1] * w[0]
+    N = (scatter @ fn.reshape(f, 3 * t)).reshape(n_markers, 3, t).astype(np.float64)
+    N /= np.sqrt(np.einsum("kct,kct->kt", N, N))[:, None]
+    return N.transpose(2, 0, 1)
 
 
 class MarkerOffsets:
@@ -63,6 +141,9 @@ class MarkerOffsets:
         the identity.
     iterations : int, default 2
         Fixed-point steps.
+    ring : MarkerRing, optional
+        :func:`marker_ring` of ``V``, ``F`` and the shell's marker vertices,
+        when it was built already (before the shell); default: built here.
 
     Attributes
     ----------
@@ -110,6 +191,7 @@ class MarkerOffsets:
         *,
         marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
         iterations: int = DEFAULT_OFFSET_ITERATIONS,
+        ring: MarkerRing | None = None,
     ) -> None:
         V = as_vertices(V)
         F = as_faces(F, V.shape[0])
@@ -122,41 +204,20 @@ class MarkerOffsets:
             raise InputError(f"iterations: expected a non-negative integer, got {iterations!r}")
         self.iterations = int(iterations)
         c = shell.constrained_vertices
-        K = c.size
-        self.n_markers = K
-
-        # Triangles round each marker vertex, duplicates across UV seams included.
-        _, Fw, welded_index = weld_duplicate_vertices(V, F)
-        marker_of = np.full(int(welded_index.max()) + 1, -1, dtype=np.int64)
-        marker_of[welded_index[c]] = np.arange(K)
-        at_marker = marker_of[Fw]  # (m, 3): marker owning each corner, -1 if none
-        ring_faces = np.flatnonzero((at_marker >= 0).any(axis=1))
-        corners = F[ring_faces]  # original indices: their rows of the basis
-        owners = at_marker[ring_faces]
-        hit = owners >= 0
-        S = sp.csr_matrix(
-            (np.ones(int(hit.sum())), (owners[hit], np.broadcast_to(np.arange(ring_faces.size)[:, None], owners.shape)[hit])),
-            shape=(K, ring_faces.size),
-        )
-        missing = np.flatnonzero(np.diff(S.indptr) == 0)
-        if missing.size:
-            raise InputError(f"marker vertices in no triangle: {c[missing].tolist()}")
-        ring, local = np.unique(corners, return_inverse=True)
-        local = local.reshape(corners.shape)
-        W = shell.product.weight_rows(ring).astype(np.float64)  # (r, K): the shell's rows of the ring
-        X = V[ring]
-        # Edges x1 - x0 and x2 - x0 of each ring triangle: rest vectors, and weights per marker displacement.
+        if ring is None:
+            ring = marker_ring(V, F, c)
+        elif not np.array_equal(ring.marker_vertices, c):
+            raise InputError("ring: built for other marker vertices than the shell's")
+        self.n_markers = c.size
+        W = shell.product.weight_rows(ring.ring_vertices).astype(np.float64)  # (r, K): the shell's rows of the ring
         # The ring moves by one small product per step, run like the shell's own
         # (single-threaded MKL where present: too small to share out between threads).
         self._ring = BasisProduct(W, precision="float32", workers=1)
-        self._ring_rest = X.astype(np.float32)
-        self._local_faces = local
-        self._scatter = S
-        self.ring_vertices = ring
-        self.rest_normals = self._normals(np.zeros((1, K, 3)))[0]
-        if not np.isfinite(self.rest_normals).all():
-            bad = c[~np.isfinite(self.rest_normals).all(axis=1)]
-            raise InputError(f"marker vertices with degenerate triangles only (no normal): {bad.tolist()}")
+        self._ring_rest = V[ring.ring_vertices].astype(np.float32)
+        self._local_faces = ring.local_faces
+        self._scatter = ring.scatter
+        self.ring_vertices = ring.ring_vertices
+        self.rest_normals = ring.rest_normals
 
     def deformed_normals(self, skin_displacements: FloatArray) -> FloatArray:
         """Unit normal of the deformed shell at each marker vertex.
@@ -214,20 +275,6 @@ class MarkerOffsets:
 
     def _normals(self, d: np.ndarray) -> np.ndarray:
         """Area-weighted unit normals (t, K, 3) at the marker vertices of the shell moved by d (t, K, 3)."""
-        t, faces = d.shape[0], self._local_faces
-        f = faces.shape[0]
-        X = np.empty((t, self._ring_rest.shape[0], 3), np.float32)
+        X = np.empty((d.shape[0], self._ring_rest.shape[0], 3), np.float32)
         self._ring.apply_into(d, self._ring_rest, X)  # the ring's vertices, moved
-        a = X[:, faces[:, 0]]
-        u = (X[:, faces[:, 1]] - a).transpose(2, 1, 0)  # (3, faces, t): each triangle's two edges
-        w = (X[:, faces[:, 2]] - a).transpose(2, 1, 0)
-        fn = np.empty((f, 3, t), np.float32)  # the cross product, component by component
-        np.multiply(u[1], w[2], out=fn[:, 0])
-        fn[:, 0] -= u[2] * w[1]
-        np.multiply(u[2], w[0], out=fn[:, 1])
-        fn[:, 1] -= u[0] * w[2]
-        np.multiply(u[0], w[1], out=fn[:, 2])
-        fn[:, 2] -= u[1] * w[0]
-        N = (self._scatter @ fn.reshape(f, 3 * t)).reshape(self.n_markers, 3, t).astype(np.float64)
-        N /= np.sqrt(np.einsum("kct,kct->kt", N, N))[:, None]
-        return N.transpose(2, 0, 1)
+        return _ring_normals(X, self._local_faces, self._scatter, self.n_markers)

@@ -9,7 +9,7 @@ from ..errors import MarkerError
 from ..typing import FloatArray
 from ..validate import as_points
 
-__all__ = ["TriharmonicWarp"]
+__all__ = ["TriharmonicWarp", "check_warp_sources"]
 
 _QUADRATIC_MIN_POINTS = 10  # a trivariate quadratic has 10 coefficients
 
@@ -65,16 +65,11 @@ class TriharmonicWarp:
     """
 
     def __init__(self, sources: FloatArray, targets: FloatArray) -> None:
-        self.sources = as_points(sources, name="sources")
+        self.sources = check_warp_sources(sources)
         self.targets = as_points(targets, name="targets")
         k = self.sources.shape[0]
         if self.targets.shape[0] != k:
             raise MarkerError(f"targets: expected {k} points to match sources, got {self.targets.shape[0]}")
-        if k < 4:
-            raise MarkerError(f"need at least 4 usable markers for the correspondence warp, got {k}")
-        centred = self.sources - self.sources.mean(axis=0)
-        if np.linalg.matrix_rank(centred, tol=1e-6 * max(np.abs(centred).max(), 1e-12)) < 3:
-            raise MarkerError("the rest-frame markers are coplanar or collinear: no 3D warp is defined")
         self.degree = 2 if k >= _QUADRATIC_MIN_POINTS and _quadratic_is_determined(self.sources) else 1
         try:
             self._rbf = RBFInterpolator(self.sources, self.targets, kernel="cubic", degree=self.degree)
@@ -126,6 +121,22 @@ class TriharmonicWarp:
                 pass
             keep[i] = True
         return residuals
+
+
+def check_warp_sources(sources: FloatArray) -> np.ndarray:
+    """The warp's centres as a float64 (K, 3) array, or a :class:`MarkerError` if no 3D warp is defined by them.
+
+    At least 4 markers, not coplanar or collinear: what :class:`TriharmonicWarp`
+    checks first, for a caller that wants the error before it has the targets.
+    """
+    points = as_points(sources, name="sources")
+    k = points.shape[0]
+    if k < 4:
+        raise MarkerError(f"need at least 4 usable markers for the correspondence warp, got {k}")
+    centred = points - points.mean(axis=0)
+    if np.linalg.matrix_rank(centred, tol=1e-6 * max(np.abs(centred).max(), 1e-12)) < 3:
+        raise MarkerError("the rest-frame markers are coplanar or collinear: no 3D warp is defined")
+    return points
 
 
 def _quadratic_is_determined(points: FloatArray, *, rcond: float = 1e-6) -> bool:
