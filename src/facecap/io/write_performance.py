@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import json
 import os
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -139,6 +139,7 @@ class PerformanceWriter:
                      if vertices else None)
         self.export_options = dict(export_options or {})
         self._rig = None
+        self._rig_written: Future[Any] | None = None
         self._frames_written = 0
         self._usd = None
         if "usd" in self.exports and vertices:
@@ -185,7 +186,19 @@ class PerformanceWriter:
             raise InputError(f"rig: {rig.n_frames} frames x {rig.n_vertices} vertices, the result has "
                              f"{self.n_frames} x {self.mesh.n_vertices}")
         self._rig = rig.quantized() if precision == "int16" else rig
-        write_rig(self.staging / "rig", self._rig)
+        # Written on a second thread (the file writes release the GIL): the caller goes on with its
+        # report while 0.26 GB go to disk at 700k vertices; finish() and abort() wait for it.
+        self._rig_writer = ThreadPoolExecutor(1, thread_name_prefix="facecap-rig")
+        self._rig_written = self._rig_writer.submit(write_rig, self.staging / "rig", self._rig)
+
+    def _wait_for_rig(self) -> None:
+        """Wait until ``rig/`` is on disk; raise what writing it raised."""
+        if self._rig_written is not None:
+            written, self._rig_written = self._rig_written, None
+            try:
+                written.result()
+            finally:
+                self._rig_writer.shutdown()
 
     def stream_rig(self, *, batch_frames: int = 64, head_pose: np.ndarray | None = None,
                    progress: bool = False, desc: str = "frames") -> None:
@@ -307,6 +320,7 @@ class PerformanceWriter:
             raise InputError(f"only {self.frames_written} of {self.n_frames} frames were written")
         if self._npy is None and self._rig is None:
             raise InputError("the result has neither vertices.npy nor a rig")
+        self._wait_for_rig()
         if self._npy is not None:
             self._npy.close()
         if self._usd is not None:
@@ -353,6 +367,10 @@ class PerformanceWriter:
 
     def abort(self) -> None:
         """Discard everything written so far."""
+        try:
+            self._wait_for_rig()
+        except Exception:
+            pass
         try:
             if self._npy is not None:
                 self._npy.close()
