@@ -625,6 +625,80 @@ def _cmd_build_anatomy(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_solve_muscles(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "solve-muscles",
+        help="muscle activations, cranium and jaw from a mocap take on an anatomy model (Sifakis et al. 2005)",
+        description="Solve every frame of a take for the muscle activations and the cranium and jaw frames whose "
+        "quasistatic face puts its markers where the take's are, on the frame runner (resumable chunks, each "
+        "chunk's first frame from rest); writes a result folder like animate's plus activations.csv, "
+        "bone_transforms.npz and activations.png.",
+    )
+    p.add_argument("--model", required=True, help="anatomy model folder (facecap build-anatomy)")
+    p.add_argument("--markers", required=True, help="mocap take: .c3d, .trc or .csv")
+    p.add_argument("--marker-units", default=None, help="override the unit the marker file declares")
+    p.add_argument("--map", required=True,
+                   help="JSON map: marker label -> vertex index or 3D point of the model's scan")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--rest-frame", type=int, default=0, help="frame whose expression matches the scan [0]")
+    p.add_argument("--frames", default=None, metavar="A:B", help="solve only take frames A <= frame < B [all]")
+    p.add_argument("--marker-offset", type=float, default=1.5,
+                   help="marker centre height above the skin, mm: places the rest frame on the scan [1.5]")
+    p.add_argument("--no-smooth", action="store_true", help="skip the spatio-temporal bilateral filter")
+    p.add_argument("--temporal-sigma", default="auto", type=_temporal_sigma,
+                   help="the filter's temporal sigma in s, or 'auto': chosen for the take by cross-validation [auto]")
+    p.add_argument("--scheduler", default="local",
+                   help="'local' (a local Dask cluster of --workers processes), 'synchronous' (this process) or "
+                        "the address of a Dask scheduler, tcp://HOST:PORT [local]")
+    p.add_argument("--workers", type=int, default=2, help="processes of a local cluster [2]")
+    p.add_argument("--work", default=None, help="resumable work folder (kept; a rerun resumes) [a temporary one]")
+    p.add_argument("--chunk-frames", type=int, default=32,
+                   help="frames per runner chunk; each chunk's first frame is solved from rest [32]")
+    p.add_argument("--max-warm-steps", type=int, default=None,
+                   help="Gauss-Newton steps of a frame warm-started from the one before [the solver's, 2]")
+    p.add_argument("--marker-noise", type=float, default=None,
+                   help="expected marker noise, mm (the penalty's starting weight) [the solver's, 0.2]")
+    p.add_argument("--export", default="", help="exports, comma-separated, as for animate")
+    p.set_defaults(func=_cmd_solve_muscles)
+
+
+def _cmd_solve_muscles(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from .io.export_result import parse_export_formats
+    from .io.read_markers import read_markers
+    from .muscles import solve_muscle_take
+
+    if args.workers < 1 or args.chunk_frames < 1:
+        raise FacecapError("--workers and --chunk-frames: expected positive integers")
+    exports = parse_export_formats(args.export)  # before any long work
+    model = Path(args.model)
+    if not model.is_dir():
+        raise FacecapError("no such model folder (make one with facecap build-anatomy)", path=str(model))
+    take = read_markers(args.markers, unit=args.marker_units)
+    options = {}
+    if args.max_warm_steps is not None:
+        options["max_warm_steps"] = args.max_warm_steps
+    if args.marker_noise is not None:
+        options["marker_noise_mm"] = args.marker_noise
+    scheduler = {"local": None}.get(args.scheduler, args.scheduler)
+    done = solve_muscle_take(model, take, args.map, args.out, rest_frame=args.rest_frame,
+                             marker_offset_mm=args.marker_offset, smooth=not args.no_smooth,
+                             temporal_sigma_s=args.temporal_sigma, frames=args.frames, scheduler=scheduler,
+                             n_workers=args.workers, work_dir=args.work, chunk_frames=args.chunk_frames,
+                             exports=exports, solver_options=options, progress=not args.quiet,
+                             extra_metadata={"map": str(args.map)})
+    if not args.quiet:
+        r = done.report
+        t = r["timings"]
+        rms = r["marker_residual_mm"]["rms"]
+        print(f"wrote {done.out_dir}: {done.n_frames} frames x {r['n_muscles']} muscles from "
+              f"{r['n_markers']} markers, marker rms {'-' if rms is None else f'{rms:.3f}'} mm, "
+              f"{r['frames_flagged']} frames flagged (solve {t['solve_s']:.1f} s, "
+              f"{len(done.computed)} chunks computed, {len(done.reused)} reused)")
+    return 0
+
+
 def _add_demo(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="run the main job on the bundled sample, writing facecap-demo/")
     p.add_argument("--out", default="facecap-demo", help="output folder [facecap-demo]")
@@ -661,6 +735,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_wrinkles(sub)
     _add_remove_wrinkles(sub)
     _add_build_anatomy(sub)
+    _add_solve_muscles(sub)
     _add_demo(sub)
     for action in sub.choices.values():  # let -q/--quiet also follow the command
         action.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,

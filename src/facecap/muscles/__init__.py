@@ -21,6 +21,12 @@ In the order the solver uses them:
   search; set-up once, ``solve_frame(markers, previous)`` per frame.
 - :func:`solve_muscles`, :class:`MuscleTake` (``solve_muscles.py``): every frame of a take,
   each warm-started from the one before.
+- :class:`MuscleFrameStage` (``muscle_frame_stage.py``): the solve as a frame-runner stage
+  (chunks of frames on Dask, resumable; the model and solver built once per process), its
+  per-frame :data:`FRAME_FLAGS` bit mask (:func:`flag_names`) and :func:`model_folder_sha256`.
+- :func:`solve_muscle_take`, :class:`MuscleTakeResult` (``solve_muscle_take.py``): what
+  ``facecap solve-muscles`` does: model folder, take and map in, a result folder like
+  ``animate``'s out, plus :data:`ACTIVATIONS_FILE` and :data:`BONE_TRANSFORMS_FILE`.
 
 Units: mm, radians; see ``docs/muscles.md``.
 """
@@ -35,8 +41,18 @@ from .muscle_controls import MuscleControls
 from .muscle_model import FOLLOWER_WEIGHT_LIMIT, MuscleModel
 from .muscle_solver import MuscleFrame, MuscleSolver
 from .solve_muscles import MuscleTake, solve_muscles
+from .muscle_frame_stage import FRAME_FLAGS, MuscleFrameStage, flag_names, model_folder_sha256
+from .solve_muscle_take import ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, MuscleTakeResult, solve_muscle_take
 
 __all__ = [
+    "ACTIVATIONS_FILE",
+    "BONE_TRANSFORMS_FILE",
+    "FRAME_FLAGS",
+    "MuscleFrameStage",
+    "MuscleTakeResult",
+    "flag_names",
+    "model_folder_sha256",
+    "solve_muscle_take",
     "ControlPenalty",
     "DEFAULT_MAX_OFFSET_MM",
     "FOLLOWER_WEIGHT_LIMIT",

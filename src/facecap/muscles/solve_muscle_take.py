@@ -1,0 +1,379 @@
+"""A take solved for muscle activations on the frame runner, written as a result folder: ``facecap solve-muscles``.
+
+The one call the command makes (issue 11, items 5 and 6):
+
+1. the anatomy model folder (``facecap build-anatomy``) is opened and its scan is the output mesh;
+2. the take is read and conditioned as ``facecap animate`` conditions it
+   (:func:`~facecap.deform.prepare_markers`: matched to the map, gap-filled, filtered);
+3. the rest frame's markers are moved rigidly onto the scan (the solver's rest markers; the
+   cranium then carries the take's own coordinates), and every frame is solved on the frame
+   runner (:class:`~facecap.muscles.MuscleFrameStage`: Dask, resumable chunks, each chunk's
+   first frame cold);
+4. the result is written through :class:`~facecap.io.PerformanceWriter` like ``animate``'s
+   (``vertices.npy``, ``performance.json``, ``report.json``, exports) plus ``activations.csv``,
+   ``bone_transforms.npz``, ``markers.npy`` and ``activations.png``, all in one atomic folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+from typing import Any, Iterable, Mapping, NamedTuple
+
+import numpy as np
+
+from ..errors import CorrespondenceError, FacecapWarning, InputError
+
+__all__ = ["solve_muscle_take", "MuscleTakeResult", "ACTIVATIONS_FILE", "BONE_TRANSFORMS_FILE"]
+
+ACTIVATIONS_FILE = "activations.csv"
+"""Per frame and muscle: a header row ``frame,<muscle names>``, one row per frame."""
+BONE_TRANSFORMS_FILE = "bone_transforms.npz"
+"""``cranium``, ``mandible`` (T, 3, 4), ``jaw_pose`` (T, 3) and ``frames`` (T,) of the result."""
+
+DEFAULT_CHUNK_FRAMES = 32
+
+
+class MuscleTakeResult(NamedTuple):
+    """What :func:`solve_muscle_take` wrote.
+
+    Attributes
+    ----------
+    out_dir : Path
+        The finished result folder.
+    n_frames : int
+        Frames solved (and written).
+    report : dict
+        The content of ``report.json``.
+    computed, reused : tuple of int
+        Runner chunks computed by this call, and found finished in the work folder.
+    """
+
+    out_dir: Path
+    n_frames: int
+    report: dict[str, Any]
+    computed: tuple[int, ...]
+    reused: tuple[int, ...]
+
+
+def _frame_range(frames: Any, n_frames: int, source: str | None) -> tuple[int, int]:
+    if frames is None:
+        return 0, n_frames
+    if isinstance(frames, str):
+        try:
+            a, b = frames.split(":")
+            first = int(a) if a.strip() else 0
+            stop = int(b) if b.strip() else n_frames
+        except ValueError:
+            raise InputError(f"frames: expected A:B (a frame range), got {frames!r}") from None
+    else:
+        first, stop = (int(v) for v in frames)
+    if not (0 <= first < stop <= n_frames):
+        raise InputError(f"frames {first}:{stop} are outside the take (0:{n_frames})", path=source)
+    return first, stop
+
+
+def solve_muscle_take(
+    model_dir: str | os.PathLike[str],
+    markers: Any,
+    correspondence: Any,
+    out_dir: str | os.PathLike[str],
+    *,
+    rest_frame: int = 0,
+    marker_offset_mm: float = 1.5,
+    smooth: bool = True,
+    temporal_sigma_s: float | str = "auto",
+    frames: str | tuple[int, int] | None = None,
+    scheduler: str | None = None,
+    n_workers: int = 2,
+    work_dir: str | os.PathLike[str] | None = None,
+    chunk_frames: int = DEFAULT_CHUNK_FRAMES,
+    exports: Iterable[str] = (),
+    solver_options: Mapping[str, Any] | None = None,
+    progress: bool = False,
+    extra_metadata: Mapping[str, Any] | None = None,
+) -> MuscleTakeResult:
+    """Solve a take for muscle activations, cranium and jaw, and write the result folder.
+
+    Parameters
+    ----------
+    model_dir : str or path-like
+        An anatomy model folder (``facecap build-anatomy``).
+    markers : str, path-like or MarkerSequence
+        The take (``.c3d``, ``.trc``, ``.csv``), or one already read.
+    correspondence : str, path-like or Correspondence
+        The marker map (JSON: label -> scan vertex or point) on the model's scan. A point is
+        carried by the vertex of its largest barycentric weight (the solver embeds vertices).
+    out_dir : str or path-like
+        The result folder (:class:`~facecap.io.PerformanceWriter`: written atomically).
+    rest_frame : int, default 0
+        The take's frame whose expression is the scan's (the rest markers).
+    marker_offset_mm : float, default 1.5
+        Height of the marker centres above the skin, mm, as for ``animate``: the rest frame is
+        moved rigidly onto the map's points lifted by it along the scan's normals (a take in any
+        coordinates). Each marker's own offset is then measured from the model (the solver's rest
+        offsets); this height only places the take on the scan.
+    smooth, temporal_sigma_s
+        The bilateral filter, as for ``animate`` (:func:`~facecap.deform.prepare_markers`).
+    frames : 'A:B' or (A, B), optional
+        Solve and write only take frames ``A <= frame < B`` (conditioned over the whole take).
+    scheduler : str or None, default None
+        The frame runner's (:func:`~facecap.runner.run_frames`): None a local cluster of
+        ``n_workers`` processes, ``'synchronous'`` this process, or a scheduler address.
+    n_workers : int, default 2
+    work_dir : path-like, optional
+        The runner's resumable work folder (kept: a second call resumes). Default: a temporary
+        folder, removed at the end.
+    chunk_frames : int, default 32
+        Frames per runner chunk; each chunk's first frame is solved cold (3-5 Gauss-Newton
+        steps instead of 1-2).
+    exports : iterable of str
+        As for ``animate`` (:data:`facecap.io.EXPORT_FORMATS`).
+    solver_options : mapping, optional
+        :class:`~facecap.muscles.MuscleSolver` options (JSON values).
+    progress : bool, default False
+        A progress line per stage on standard error, and the runner's bar.
+    extra_metadata : mapping, optional
+        Added to ``performance.json``.
+
+    Returns
+    -------
+    MuscleTakeResult
+
+    Raises
+    ------
+    FileFormatError
+        A model folder, take or map that cannot be read (the message names the file).
+    CorrespondenceError
+        A map naming markers the take lacks, or markers whose vertices land off the model.
+    InputError
+        A frame range outside the take, rest markers far from the skin, bad options.
+
+    Notes
+    -----
+    ``vertices.npy`` holds the skin in the **take's coordinates** (the cranium's motion
+    included), like an unstabilised ``animate`` result; ``bone_transforms.npz`` holds the
+    cranium (scan rest coordinates to the take's) and the mandible (relative to the cranium,
+    :class:`~facecap.muscles.MuscleControls`).
+    """
+    from ..anatomy import load_anatomy
+    from ..deform.animate_scan import prepare_markers
+    from ..io.export_result import parse_export_formats
+    from ..io.read_correspondence import Correspondence, read_correspondence
+    from ..io.read_markers import read_markers
+    from ..io.write_performance import PerformanceWriter, import_writers
+    from ..markers.rigid_fit import rigid_fit
+    from ..runner import run_frames
+    from ..structures import MarkerSequence, Mesh
+    from .marker_embedding import marker_embedding
+    from .muscle_frame_stage import MuscleFrameStage, flag_names, model_folder_sha256
+
+    t_all = time.perf_counter()
+    timings: dict[str, float] = {}
+
+    def stage(message: str) -> None:
+        if progress:
+            print(f"facecap: {message}", file=sys.stderr, flush=True)
+
+    exports = parse_export_formats(exports)
+    if int(chunk_frames) < 1 or int(n_workers) < 1:
+        raise InputError("chunk_frames and n_workers: expected positive integers")
+    t = time.perf_counter()
+    model_dir = Path(model_dir)
+    stage(f"reading the model {model_dir}")
+    anatomy = load_anatomy(model_dir)
+    scan = Mesh(np.array(anatomy.scan_vertices), np.array(anatomy.scan_faces), source_unit="mm",
+                source_path=str(anatomy.provenance.get("scan")) if anatomy.provenance.get("scan") else None)
+    take = markers if isinstance(markers, MarkerSequence) else read_markers(markers)
+    corr = correspondence if isinstance(correspondence, Correspondence) else read_correspondence(correspondence, scan)
+    map_name = corr.source_path
+    timings["read_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    caught: list[str] = []
+    with warnings.catch_warnings(record=True) as records:
+        warnings.simplefilter("always", FacecapWarning)
+        stage(f"conditioning {take.n_frames} frames x {take.n_markers} markers")
+        prepared = prepare_markers(take, scan, corr, rest_frame=rest_frame, smooth=smooth,
+                                   temporal_sigma_s=temporal_sigma_s)
+        caught += [str(w.message) for w in records if issubclass(w.category, FacecapWarning)]
+    for message in caught:
+        warnings.warn(message, FacecapWarning, stacklevel=2)
+    timings["condition_markers_s"] = time.perf_counter() - t
+    labels = prepared.labels
+    first, stop = _frame_range(frames, take.n_frames, take.source_path)
+    n = stop - first
+
+    # the rest markers in the scan's frame: the rest frame moved rigidly onto the map's points lifted
+    # by the marker height (the solver measures each marker's own offset from its skin point there;
+    # the cranium then carries the scan into the take's coordinates)
+    vertices = prepared.constrained_vertices
+    rest_take = prepared.positions[rest_frame]
+    lifted = prepared.scan_points + float(marker_offset_mm) * _vertex_normals(scan.vertices, scan.faces, vertices)
+    fit = rigid_fit(rest_take, lifted)
+    rest_scan = rest_take @ fit.rotation.T + fit.translation
+    weights = np.asarray(anatomy.skin_weights)[vertices]
+    off_model = ~np.asarray(anatomy.skin_meshed)[vertices] | (np.abs(weights).max(axis=1) > 3.0)
+    if off_model.any():  # the solver's own test (marker_embedding), said with the markers' names
+        names = [labels[i] for i in np.flatnonzero(off_model)]
+        raise CorrespondenceError(f"markers {', '.join(names[:8])}{' ...' if len(names) > 8 else ''} land off the "
+                                  f"model {model_dir}: their scan vertices are outside the meshed face (ears, scalp, "
+                                  "neck, inner lips)", path=map_name)
+    try:
+        marker_embedding(anatomy, vertices, rest_scan)
+    except InputError as exc:
+        raise InputError(f"the rest frame {rest_frame} does not fit the model's scan ({exc}); "
+                         "is the map on this model's scan?", path=take.source_path) from None
+
+    options = dict(solver_options or {})
+    stage_obj = MuscleFrameStage(model_dir, vertices, rest_scan, prepared.positions[first:stop], options=options,
+                                 model_sha256=model_folder_sha256(model_dir))
+    own_work = work_dir is None
+    work = Path(tempfile.mkdtemp(prefix="facecap-muscles-")) if own_work else Path(work_dir)
+    try:
+        t = time.perf_counter()
+        where = ("this process" if scheduler == "synchronous" else
+                 f"a local cluster of {n_workers} processes" if scheduler is None else scheduler)
+        stage(f"solving {n} frames (take frames {first}:{stop}) x {len(labels)} markers, "
+              f"{anatomy.n_tets} tetrahedra, in chunks of {chunk_frames} on {where}")
+        run = run_frames(stage_obj, n, work, chunk_frames=int(chunk_frames), scheduler=scheduler,
+                         n_workers=int(n_workers), progress=progress)
+        timings["solve_s"] = time.perf_counter() - t
+        import_writers(exports)
+        t = time.perf_counter()
+        stage(f"writing {out_dir}")
+        result = {name: run.load(name, mmap=name == "vertices") for name in run.array_specs}
+        report = _report(result, labels, anatomy, first, rest_frame, run, prepared, caught, flag_names)
+        metadata = {
+            "source_files": {"model": str(model_dir), "markers": take.source_path, "map": map_name},
+            "source_units": {"scan": "mm", "markers": take.source_unit},
+            "method": "sifakis2005-muscle-activations",
+            "frame": "take (the skin in the take's coordinates; the cranium in bone_transforms.npz)",
+            "rest_frame": int(rest_frame),
+            "take_to_scan_at_rest": np.hstack([fit.rotation, fit.translation[:, None]]).tolist(),
+            "frames": [first, stop],
+            "first_frame": int(take.first_frame) + first,
+            "parameters": {"marker_offset_mm": float(marker_offset_mm), "smooth": bool(smooth),
+                           "temporal_sigma_s": prepared.temporal_sigma_s, "chunk_frames": int(chunk_frames),
+                           "solver": options,
+                           "model_sha256": stage_obj.model_sha256},
+            "muscles": list(anatomy.muscle_names),
+            "markers": list(labels),
+            **dict(extra_metadata or {}),
+        }
+        with PerformanceWriter(out_dir, mesh=scan, rate=take.rate, n_frames=n, exports=exports,
+                               export_options={"progress": progress}) as writer:
+            skin = result["vertices"]
+
+            def compute(lo: int, hi: int, out: np.ndarray) -> None:
+                out[:] = skin[lo:hi]
+
+            writer.stream(compute, batch_frames=32, progress=progress, desc="solve-muscles")
+            np.save(writer.path("markers.npy"), prepared.positions[first:stop].astype(np.float32))
+            _write_activations(writer.path(ACTIVATIONS_FILE), first, anatomy.muscle_names, result["activations"])
+            _write_npz(writer.path(BONE_TRANSFORMS_FILE), cranium=result["cranium"], mandible=result["mandible"],
+                       jaw_pose=result["jaw_pose"], frames=np.arange(first, stop, dtype=np.int64))
+            _plot_activations(writer.path("activations.png"), (first + np.arange(n)) / take.rate,
+                              anatomy.muscle_names, result["activations"])
+            timings["write_s"] = time.perf_counter() - t
+            timings["total_s"] = time.perf_counter() - t_all
+            report["timings"] = timings
+            writer.path("report.json").write_text(json.dumps(report, indent=1))
+            metadata["timings"] = timings
+            final = writer.finish(metadata)
+    finally:
+        if own_work:
+            shutil.rmtree(work, ignore_errors=True)
+    return MuscleTakeResult(Path(final), n, report, tuple(run.computed), tuple(run.reused))
+
+
+def _vertex_normals(V: np.ndarray, F: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+    """Area-weighted unit normals of the scan at some vertices, (k, 3)."""
+    face_normals = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    normals = np.zeros_like(V)
+    for corner in range(3):
+        np.add.at(normals, F[:, corner], face_normals)
+    out = normals[vertices]
+    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
+
+
+def _write_npz(path: Path, **arrays: np.ndarray) -> None:
+    """An uncompressed ``.npz`` with fixed member order and ZIP times: the same arrays give the same bytes."""
+    import zipfile
+
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_STORED) as archive:
+        for name, value in arrays.items():
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.external_attr = 0o644 << 16
+            with archive.open(info, "w") as member:
+                np.lib.format.write_array(member, np.ascontiguousarray(value), allow_pickle=False)
+
+
+def _write_activations(path: Path, first: int, names: Iterable[str], activations: np.ndarray) -> None:
+    """``activations.csv``: ``frame,<names>``, one row per frame (take frame numbers), 6 decimals."""
+    lines = [",".join(["frame", *names])]
+    for j, row in enumerate(np.asarray(activations)):
+        lines.append(",".join([str(first + j), *(f"{v:.6f}" for v in row)]))
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+def _plot_activations(path: Path, times: np.ndarray, names: tuple[str, ...], activations: np.ndarray) -> None:
+    """The activations over time: the 8 most active muscles by name, the rest summarised."""
+    from ..report.plot_series import plot_series
+
+    A = np.asarray(activations, dtype=np.float64)
+    order = np.argsort(-A.max(axis=0), kind="stable")
+    shown = order[:8]
+    series = {names[i]: A[:, i] for i in shown}
+    if A.shape[1] > shown.size:
+        series[f"the other {A.shape[1] - shown.size} muscles"] = A[:, order[8:]]
+    plot_series(times, series, path, ylabel="activation (0-1)", title="muscle activations")
+
+
+def _report(result: Mapping[str, np.ndarray], labels: tuple[str, ...], anatomy: Any, first: int, rest_frame: int,
+            run: Any, prepared: Any, caught: list[str], flag_names: Any) -> dict[str, Any]:
+    """``report.json``: per-frame marker residuals, flags, iterations, constraint and runner figures."""
+    res = np.asarray(result["marker_residual"], dtype=np.float64)
+    finite = np.where(np.isfinite(res), res, -np.inf)
+    flags = [list(flag_names(b)) for b in result["flags"]]
+    flagged = {str(first + j): f for j, f in enumerate(flags) if f}
+
+    def listed(a: np.ndarray, digits: int = 5) -> list[Any]:
+        return [None if not np.isfinite(v) else round(float(v), digits) for v in np.asarray(a, dtype=np.float64)]
+
+    return {
+        "n_frames": int(res.shape[0]),
+        "first_frame": int(first),
+        "n_vertices": int(anatomy.scan_vertices.shape[0]),
+        "n_markers": len(labels),
+        "n_tets": int(anatomy.n_tets),
+        "n_muscles": int(anatomy.n_muscles),
+        "rest_frame": int(rest_frame),
+        "marker_residual_mm": {
+            "labels": list(labels),
+            "per_frame": [listed(row, 4) for row in res],
+            "per_frame_max": listed(finite.max(axis=1)),
+            "per_frame_rms": listed(result["rms_mm"]),
+            "max": float(finite.max()) if np.isfinite(finite.max()) else None,
+            "rms": float(np.sqrt(np.nanmean(res ** 2))) if np.isfinite(res).any() else None,
+        },
+        "flags": flagged,
+        "frames_flagged": len(flagged),
+        "steps": np.asarray(result["steps"]).tolist(),
+        "quasistatic_solves": np.asarray(result["quasistatic_solves"]).tolist(),
+        "newton_iterations": np.asarray(result["newton_iterations"]).tolist(),
+        "cold_frames": [first + int(j) for j in np.flatnonzero(result["cold"])],
+        "inverted_tets": np.asarray(result["inverted_tets"]).tolist(),
+        "constraint_violation_max": float(np.max(result["constraint_violation"])),
+        "runner": {"chunks": len(run.chunks), "computed": list(run.computed), "reused": list(run.reused)},
+        "filled_samples": int(prepared.filled.sum()),
+        "temporal_sigma_s": prepared.temporal_sigma_s,
+        "notes": list(prepared.notes),
+        "warnings": caught,
+    }

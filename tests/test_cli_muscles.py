@@ -1,0 +1,205 @@
+"""``facecap solve-muscles``: a take made by the forward model from known controls, solved from its files.
+
+One small model (the bundled ICT face at ``n_tets=2000``, about 3,900 tetrahedra), 120 markers 1.5 mm
+above the skin, a 6-frame take with 0.2 mm noise written as a CSV with a JSON map. The truth (controls,
+noise-free skin) comes from :func:`facecap.muscles.forward_markers` on a model of its own.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import NamedTuple
+
+import numpy as np
+import pytest
+
+from facecap.anatomy import build_anatomy
+from facecap.cli import main
+from facecap.io import read_result, write_markers
+from facecap.muscles import MuscleControls, MuscleModel, forward_markers, marker_embedding
+from facecap.structures import MarkerSequence
+from facecap.synth import choose_marker_vertices, load_ict_sample
+
+TEST_TETS = 2000
+N_MARKERS = 120
+N_FRAMES = 6
+NOISE_MM = 0.2
+
+
+class Case(NamedTuple):
+    model_dir: Path
+    take: Path
+    map: Path
+    labels: list[str]
+    muscles: tuple[str, ...]
+    activations: np.ndarray  # (T, k) the known controls
+    jaw_pose: np.ndarray  # (T, 3)
+    skin: np.ndarray  # (T, n, 3) noise-free forward skin, mm
+
+
+@pytest.fixture(scope="module")
+def case(tmp_path_factory) -> Case:
+    root = tmp_path_factory.mktemp("muscle_case")
+    anatomy = build_anatomy(load_ict_sample().mesh, n_tets=TEST_TETS, progress=False)
+    anatomy.save(root / "model")
+    model = MuscleModel(anatomy)
+    # the layout of tests/muscles/conftest.py: denser where the muscles and the jaw move the skin
+    model.equilibrium(np.zeros(model.n_muscles), np.eye(3, 4))
+    dXa, dXb = model.jacobians()
+    rest_skin = model.skin(model.rest_positions)
+    deltas = np.stack([model.skin(model.rest_positions + d) - rest_skin for d in np.concatenate([dXa, 0.2 * dXb[:9]])])
+    V, F = anatomy.scan_vertices, anatomy.scan_faces
+    vertices = choose_marker_vertices(V, F, deltas, N_MARKERS, exclude=~(anatomy.skin_meshed & model.skin_follows))
+    normals = np.zeros_like(V)
+    face_normals = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    for corner in range(3):
+        np.add.at(normals, F[:, corner], face_normals)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    e = marker_embedding(anatomy, vertices, V[vertices] + 1.5 * normals[vertices])
+    # frame 0 the scan's expression; then muscles ramp in, the jaw opens and slides, the head turns and moves
+    rng = np.random.default_rng(5)
+    k = model.n_muscles
+    target = rng.uniform(0, 0.6, k) * (rng.uniform(size=k) < 0.5)
+    activations, poses, skin, markers = [], [], [], []
+    for t in range(N_FRAMES):
+        s = t / (N_FRAMES - 1)
+        turn = np.radians(2.0 * s)
+        cranium = np.hstack([[[np.cos(turn), 0, np.sin(turn)], [0, 1, 0], [-np.sin(turn), 0, np.cos(turn)]],
+                             [[1.0 * s], [-0.5 * s], [0.5 * s]]])
+        c = MuscleControls(s * target, cranium, model.jaw.transform(np.radians(6 * s), 0.5 * s, s))
+        truth = forward_markers(model, e, c, noise_mm=NOISE_MM, seed=100 + t)
+        activations.append(c.activations)
+        poses.append(model.jaw.pose(c.mandible))
+        skin.append(truth.skin)
+        markers.append(truth.markers)
+    labels = [f"M{i:03d}" for i in range(N_MARKERS)]
+    take = root / "take.csv"
+    write_markers(MarkerSequence(np.stack(markers), tuple(labels), rate=60.0), take)
+    mapping = root / "map.json"
+    mapping.write_text(json.dumps({label: int(v) for label, v in zip(labels, vertices)}))
+    return Case(root / "model", take, mapping, labels, tuple(anatomy.muscle_names), np.stack(activations),
+                np.stack(poses), np.stack(skin))
+
+
+def _solve(case: Case, out: Path, *extra: str) -> int:
+    return main(["-q", "solve-muscles", "--model", str(case.model_dir), "--markers", str(case.take),
+                 "--map", str(case.map), "--out", str(out), "--no-smooth", *extra])
+
+
+def _activations(out: Path) -> tuple[list[str], np.ndarray, np.ndarray]:
+    with open(out / "activations.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    table = np.array(rows[1:], dtype=np.float64)
+    return rows[0], table[:, 0].astype(int), table[:, 1:]
+
+
+@pytest.fixture(scope="module")
+def solved(case, tmp_path_factory) -> tuple[Path, Path]:
+    root = tmp_path_factory.mktemp("solved")
+    assert _solve(case, root / "out", "--scheduler", "synchronous", "--work", str(root / "work"),
+                  "--chunk-frames", "3", "--max-warm-steps", "3") == 0
+    return root / "out", root / "work"
+
+
+def test_the_result_folder_holds_the_forward_models_face(case, solved) -> None:
+    out, _ = solved
+    result = read_result(out)
+    assert (result.n_frames, result.n_vertices) == (N_FRAMES, case.skin.shape[1]) and result.rate == 60.0
+    frames = result.frames().astype(np.float64) * result.mm_per_unit
+    error = np.linalg.norm(frames - case.skin, axis=2)  # every scan vertex, every frame
+    assert error.mean() < NOISE_MM and np.percentile(error, 99) < 3 * NOISE_MM, (error.mean(), error.max())
+    # activations.csv: the muscles by name, one row per frame, the known controls back
+    header, numbers, activations = _activations(out)
+    assert header == ["frame", *case.muscles] and numbers.tolist() == list(range(N_FRAMES))
+    assert np.abs(activations - case.activations).mean() <= 0.05
+    assert activations.min() >= -1e-4 and activations.max() <= 1 + 1e-4
+    # the jaw in bone_transforms.npz
+    with np.load(out / "bone_transforms.npz") as bones:
+        assert bones["cranium"].shape == (N_FRAMES, 3, 4) and bones["mandible"].shape == (N_FRAMES, 3, 4)
+        assert np.abs(np.degrees(bones["jaw_pose"][:, 0] - case.jaw_pose[:, 0])).max() < 0.5
+        assert bones["frames"].tolist() == list(range(N_FRAMES))
+    # report.json: per-frame marker residuals at the noise level (3-D norm of 0.2 mm per axis: 0.35 mm rms)
+    report = json.loads((out / "report.json").read_text())
+    residual = np.array(report["marker_residual_mm"]["per_frame"], dtype=np.float64)
+    assert residual.shape == (N_FRAMES, N_MARKERS) and report["marker_residual_mm"]["labels"] == case.labels
+    assert 0.25 < report["marker_residual_mm"]["rms"] < 0.45
+    assert report["cold_frames"] == [0, 3] and report["frames_flagged"] == 0
+    info = json.loads((out / "performance.json").read_text())
+    assert info["method"] == "sifakis2005-muscle-activations" and info["muscles"] == list(case.muscles)
+    assert (out / "activations.png").stat().st_size > 10_000
+    assert result.markers is not None and result.markers.shape == (N_FRAMES, N_MARKERS, 3)
+
+
+def test_a_resumed_run_skips_finished_chunks_and_gives_the_same_bytes(case, solved, tmp_path) -> None:
+    out, work = solved
+    chunks = sorted((work / "chunks").glob("chunk-*.npz"))
+    assert len(chunks) == 2
+    first = chunks[0].stat()
+    chunks[1].unlink()  # as if the run had stopped after its first chunk
+    again = tmp_path / "again"
+    assert _solve(case, again, "--scheduler", "synchronous", "--work", str(work), "--chunk-frames", "3",
+                  "--max-warm-steps", "3") == 0
+    kept = chunks[0].stat()
+    assert (kept.st_ino, kept.st_mtime_ns) == (first.st_ino, first.st_mtime_ns)  # not computed again
+    report = json.loads((again / "report.json").read_text())
+    assert report["runner"] == {"chunks": 2, "computed": [1], "reused": [0]}
+    for name in ("vertices.npy", "activations.csv", "bone_transforms.npz", "markers.npy"):
+        assert (again / name).read_bytes() == (out / name).read_bytes(), name
+
+
+def test_a_frame_range_on_the_local_cluster(case, solved, tmp_path) -> None:
+    """--frames 2:5 on a local Dask cluster of two processes: the same frames as the full run, to the tolerance
+    of a cold start at another frame."""
+    out, _ = solved
+    part = tmp_path / "part"
+    assert _solve(case, part, "--frames", "2:5", "--workers", "2", "--chunk-frames", "2", "--export", "usd") == 0
+    result = read_result(part)
+    assert result.n_frames == 3
+    error = np.linalg.norm(result.frames().astype(np.float64) - case.skin[2:5], axis=2)
+    assert error.mean() < NOISE_MM
+    _, numbers, activations = _activations(part)
+    assert numbers.tolist() == [2, 3, 4]
+    assert np.abs(activations - case.activations[2:5]).mean() <= 0.05
+    assert (part / "performance.usdc").is_file()
+    assert json.loads((part / "performance.json").read_text())["frames"] == [2, 5]
+
+
+@pytest.mark.parametrize("problem", ["no model", "not a model", "map names markers not in the take",
+                                     "markers off the model", "frames outside the take"])
+def test_bad_input_is_one_line_naming_the_file(case, tmp_path, capsys, problem) -> None:
+    args = {"--model": str(case.model_dir), "--markers": str(case.take), "--map": str(case.map)}
+    named = None
+    if problem == "no model":
+        args["--model"] = named = str(tmp_path / "nowhere")
+    elif problem == "not a model":
+        (tmp_path / "empty").mkdir()
+        args["--model"] = str(tmp_path / "empty")
+        named = str(tmp_path / "empty" / "anatomy.json")
+    elif problem == "map names markers not in the take":
+        doc = json.loads(case.map.read_text())
+        doc["NOSE_TIP"] = 0
+        args["--map"] = named = str(tmp_path / "map.json")
+        Path(named).write_text(json.dumps(doc))
+    elif problem == "markers off the model":
+        from facecap.anatomy import load_anatomy
+
+        anatomy = load_anatomy(case.model_dir)
+        doc = json.loads(case.map.read_text())
+        doc["M007"] = int(np.flatnonzero(~anatomy.skin_meshed)[0])  # an ear or scalp vertex
+        args["--map"] = named = str(tmp_path / "map.json")
+        Path(named).write_text(json.dumps(doc))
+    else:
+        named = str(case.take)
+    argv = ["solve-muscles", *[x for kv in args.items() for x in kv], "--out", str(tmp_path / "out"),
+            "--scheduler", "synchronous"]
+    if problem == "frames outside the take":
+        argv += ["--frames", "4:20"]
+    assert main(argv) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    errors = [line for line in err if line.startswith("facecap: error:")]
+    assert len(errors) == 1 and named in errors[0], err
+    if problem == "markers off the model":
+        assert "M007" in errors[0] and "off the model" in errors[0]
+    assert not (tmp_path / "out").exists()
