@@ -149,21 +149,33 @@ def test_a_resumed_run_skips_finished_chunks_and_gives_the_same_bytes(case, solv
         assert (again / name).read_bytes() == (out / name).read_bytes(), name
 
 
-def test_a_frame_range_on_the_local_cluster(case, solved, tmp_path) -> None:
-    """--frames 2:5 on a local Dask cluster of two processes: the same frames as the full run, to the tolerance
-    of a cold start at another frame."""
+def test_a_frame_range_is_that_part_of_the_take(case, solved, tmp_path) -> None:
+    """--frames 3:6 in chunks of 3 is the full run's second chunk: the same frames, bit for bit."""
     out, _ = solved
     part = tmp_path / "part"
-    assert _solve(case, part, "--frames", "2:5", "--workers", "2", "--chunk-frames", "2", "--export", "usd") == 0
+    assert _solve(case, part, "--scheduler", "synchronous", "--frames", "3:6", "--chunk-frames", "3",
+                  "--max-warm-steps", "3") == 0
     result = read_result(part)
     assert result.n_frames == 3
-    error = np.linalg.norm(result.frames().astype(np.float64) - case.skin[2:5], axis=2)
-    assert error.mean() < NOISE_MM
+    assert np.array_equal(result.frames(), read_result(out).frames(3, 6))
     _, numbers, activations = _activations(part)
-    assert numbers.tolist() == [2, 3, 4]
-    assert np.abs(activations - case.activations[2:5]).mean() <= 0.05
-    assert (part / "performance.usdc").is_file()
-    assert json.loads((part / "performance.json").read_text())["frames"] == [2, 5]
+    assert numbers.tolist() == [3, 4, 5]
+    assert np.array_equal(activations, _activations(out)[2][3:])
+    info = json.loads((part / "performance.json").read_text())
+    assert info["frames"] == [3, 6] and info["first_frame"] == 3
+
+
+def test_the_local_cluster_gives_the_synchronous_result(case, solved, tmp_path) -> None:
+    """Two worker processes (the default scheduler), with a USD export: the frames of the in-process run."""
+    out, _ = solved
+    local = tmp_path / "local"
+    assert _solve(case, local, "--workers", "2", "--chunk-frames", "3", "--max-warm-steps", "3",
+                  "--export", "usd") == 0
+    report = json.loads((local / "report.json").read_text())
+    assert report["runner"]["computed"] == [0, 1]
+    assert np.abs(read_result(local).frames() - read_result(out).frames()).max() < 1e-4
+    assert np.abs(_activations(local)[2] - _activations(out)[2]).max() < 1e-5
+    assert (local / "performance.usdc").is_file()
 
 
 @pytest.mark.parametrize("problem", ["no model", "not a model", "map names markers not in the take",
