@@ -38,7 +38,7 @@ from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, DEFAULT_OFFSET_ITERATIONS,
 from .principal_targets import PrincipalTargets, principal_targets, principal_targets_from_rig
 from .rbf_deform import rbf_deformation_basis
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, PieceReport, ThinShellSolver, thin_shell_deform
-from .triharmonic_warp import TriharmonicWarp
+from .triharmonic_warp import TriharmonicWarp, check_warp_sources
 
 __all__ = [
     "animate_scan",
@@ -46,6 +46,7 @@ __all__ = [
     "prepare_markers",
     "PreparedMarkers",
     "TriharmonicWarp",
+    "check_warp_sources",
     "ThinShellSolver",
     "thin_shell_deform",
     "PieceReport",

@@ -18,7 +18,7 @@ from ..errors import FacecapWarning, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
 from ..io.export_result import parse_export_formats
 from ..io.result_rig import ResultRig
-from ..io.write_performance import PerformanceWriter, import_writers
+from ..io.write_performance import PerformanceWriter
 from ..markers.choose_temporal_sigma import TemporalSigmaChoice
 from ..markers.condition_take import condition_take
 from ..markers.rigid_fit import rigid_fit
@@ -332,20 +332,22 @@ def animate_scan(
         rest_markers = check_warp_sources(_rest_markers(prepared.positions, rest_frame, rest_average_s * markers.rate))
 
         # Beside the set-up, on a second thread: its sparse solves keep one core busy, not two (measured
-        # at 700k vertices). The mesh check (a report only: the shell handles what it finds on its own),
-        # the writers' imports (the USD library and matplotlib: 0.4 s at the end otherwise), and the
-        # marker side: the mesh round the markers, the warp and every frame through it. Not beside the
-        # conditioning: its BLAS calls use both cores.
-        mesh_check_run = beside_setup.submit(_timed, check_mesh, scan.vertices, scan.faces)
-        beside_setup.submit(import_writers, exports)
-        marker_side_run = beside_setup.submit(_timed, _marker_side, scan, prepared, rest_markers, marker_offset_mm)
+        # at 700k vertices). The mesh check (a report only: the shell handles what it finds on its own)
+        # and the marker side: the mesh round the markers, the warp and every frame through it. One
+        # OpenBLAS thread meanwhile (the set-up itself uses MKL): a second would only contend for the
+        # core PARDISO's solves use. Not beside the conditioning: its BLAS calls use both cores. Nothing
+        # beside it imports a compiled module: a library loading on one thread while another loads
+        # one can deadlock (seen: usd-core's initialisers against PARDISO's ctypes load of MKL).
         t = time.perf_counter()
-        stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
-        solver = ThinShellSolver(
-            scan.vertices, scan.faces, prepared.constrained_vertices,
-            ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
-        )
-        (ring, centres, warp, face_markers), timings["correspondence_warp_s"] = marker_side_run.result()
+        with threadpool_limits(limits={"openblas": 1}):
+            mesh_check_run = beside_setup.submit(_timed, check_mesh, scan.vertices, scan.faces)
+            marker_side_run = beside_setup.submit(_timed, _marker_side, scan, prepared, rest_markers, marker_offset_mm)
+            stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
+            solver = ThinShellSolver(
+                scan.vertices, scan.faces, prepared.constrained_vertices,
+                ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
+            )
+            (ring, centres, warp, face_markers), timings["correspondence_warp_s"] = marker_side_run.result()
         offsets = MarkerOffsets(scan.vertices, scan.faces, solver, marker_offset_mm=marker_offset_mm, ring=ring)
         timings["shell_setup_s"] = time.perf_counter() - t  # the shell and the offsets' part of it that needs it
         mesh_check, timings["check_mesh_s"] = mesh_check_run.result()
@@ -466,15 +468,12 @@ def _marker_side(scan: Mesh, prepared: PreparedMarkers, rest_markers: np.ndarray
 
     The triangles round the marker vertices with the scan's normals there,
     the markers at rest in face space (the scan points lifted by the offset),
-    the warp onto them and every frame's markers through it (T, K, 3). One
-    BLAS thread: this runs beside the shell's set-up, where a second OpenBLAS
-    thread would only contend for the core PARDISO's solves use.
+    the warp onto them and every frame's markers through it (T, K, 3).
     """
-    with threadpool_limits(limits={"openblas": 1}):
-        ring = marker_ring(scan.vertices, scan.faces, prepared.constrained_vertices)
-        centres = prepared.scan_points + marker_offset_mm * ring.rest_normals
-        warp = TriharmonicWarp(rest_markers, centres)
-        return ring, centres, warp, warp(prepared.positions)
+    ring = marker_ring(scan.vertices, scan.faces, prepared.constrained_vertices)
+    centres = prepared.scan_points + marker_offset_mm * ring.rest_normals
+    warp = TriharmonicWarp(rest_markers, centres)
+    return ring, centres, warp, warp(prepared.positions)
 
 
 def _timed(function: Any, *args: Any) -> tuple[Any, float]:

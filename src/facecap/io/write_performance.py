@@ -395,11 +395,11 @@ _WRITER_MODULES = {
 def import_writers(exports: Iterable[str]) -> None:
     """Import the modules :class:`PerformanceWriter` will need for ``exports`` and the run's report page.
 
-    For a caller with a core to spare before the writing starts: ``animate``
-    imports them beside the shell's set-up, where the USD libraries (0.12 s)
-    and matplotlib for the report's plots (0.25 s) otherwise came at the end.
-    Python's import lock makes a second import of the same module wait for
-    the first, so this may run on any thread.
+    For a caller that wants the cost (the USD libraries 0.12 s, matplotlib for
+    the report's plots 0.25 s) before its long work rather than at the end, or
+    an import error at once. Call it on the main thread: a compiled module
+    loading on one thread while another thread loads a library can deadlock
+    (seen: usd-core's initialisers against PARDISO's ctypes load of MKL).
     """
     import importlib
 
