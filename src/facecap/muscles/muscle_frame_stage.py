@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from ..errors import FileFormatError, InputError
 from ..typing import FloatArray
@@ -174,14 +175,20 @@ class MuscleFrameStage:
                            rms_mm=float("nan"), steps=0, quasistatic_solves=0, newton_iterations=0, inverted_tets=0)
 
     def solve(self, start: int, stop: int, previous: MuscleFrame | None = None) -> list[MuscleFrame]:
-        """Frames ``start .. stop - 1`` solved in order, the first from ``previous`` (None: cold)."""
+        """Frames ``start .. stop - 1`` solved in order, the first from ``previous`` (None: cold).
+
+        One BLAS and MKL thread (PARDISO included), as on a Dask worker: a
+        multithreaded factorisation rounds differently from run to run, and a
+        chunk computed twice (a resumed run, a lost worker) must give the same bytes.
+        """
         if not (0 <= start < stop <= self.n_frames):
             raise InputError(f"frames {start}..{stop}: expected 0 <= start < stop <= {self.n_frames}")
-        solver = self.solver()
-        frames = []
-        for t in range(start, stop):
-            previous = solver.solve_frame(self.markers[t], previous)
-            frames.append(previous)
+        with threadpool_limits(limits=1):
+            solver = self.solver()
+            frames = []
+            for t in range(start, stop):
+                previous = solver.solve_frame(self.markers[t], previous)
+                frames.append(previous)
         return frames
 
     def __call__(self, start: int, stop: int, state: Mapping[str, np.ndarray] | None
