@@ -10,9 +10,11 @@ import numpy as np
 import pytest
 
 from facecap.errors import FileFormatError, InputError
-from facecap.muscles import (FRAME_FLAGS, MuscleControls, MuscleFrameStage, flag_names, forward_markers,
+from facecap.muscles import (FRAME_FLAGS, MuscleFrameStage, flag_names, forward_markers,
                              marker_embedding)
 from facecap.runner import run_frames
+
+from muscle_cases import ramping_controls
 
 
 @pytest.fixture(scope="module")
@@ -26,18 +28,16 @@ def model_dir(anatomy, tmp_path_factory) -> Path:
 def truth(anatomy, model, layout):
     """A noise-free 5-frame take from known controls: muscles ramping, the jaw opening, the head turning."""
     e = marker_embedding(anatomy, layout.marker_vertices, layout.rest_markers)
-    rng = np.random.default_rng(21)
-    k = model.n_muscles
-    start = rng.uniform(0, 0.6, k) * (rng.uniform(size=k) < 0.5)
-    end = rng.uniform(0, 0.6, k) * (rng.uniform(size=k) < 0.5)
-    controls, markers = [], []
-    for s in np.linspace(0, 1, 5):  # activations change by up to 0.15 a frame, the jaw by 1 degree
+
+    def cranium(s: float) -> np.ndarray:
         turn = np.radians(2 * s)
-        cranium = np.hstack([[[np.cos(turn), 0, np.sin(turn)], [0, 1, 0], [-np.sin(turn), 0, np.cos(turn)]],
-                             [[s], [-s], [0.5 * s]]])
-        c = MuscleControls((1 - s) * start + s * end, cranium, model.jaw.transform(np.radians(2 + 4 * s), 0, s))
-        controls.append(c)
-        markers.append(forward_markers(model, e, c).markers)
+        return np.hstack([[[np.cos(turn), 0, np.sin(turn)], [0, 1, 0], [-np.sin(turn), 0, np.cos(turn)]],
+                          [[s], [-s], [0.5 * s]]])
+
+    # activations change by up to 0.15 a frame, the jaw by 1 degree
+    controls = ramping_controls(model.n_muscles, 5, seed=21, peak=0.6, cranium=cranium,
+                                jaw=lambda s: model.jaw.transform(np.radians(2 + 4 * s), 0, s))
+    markers = [forward_markers(model, e, c).markers for c in controls]
     return controls, np.stack(markers)
 
 

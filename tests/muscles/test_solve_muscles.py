@@ -6,21 +6,17 @@ import numpy as np
 import pytest
 
 from facecap.errors import InputError
-from facecap.muscles import MuscleControls, forward_markers, marker_embedding, solve_muscles
+from facecap.muscles import forward_markers, marker_embedding, solve_muscles
+
+from muscle_cases import ramping_controls
 
 
 def test_a_take_is_tracked_frame_by_frame(anatomy, model, layout) -> None:
     e = marker_embedding(anatomy, layout.marker_vertices, layout.rest_markers)
-    rng = np.random.default_rng(9)
     k = model.n_muscles
-    start = rng.uniform(0, 0.7, k) * (rng.uniform(size=k) < 0.5)
-    end = rng.uniform(0, 0.7, k) * (rng.uniform(size=k) < 0.5)
-    truth, markers = [], []
-    for s in np.linspace(0, 1, 4):  # activations change by up to 0.23 between frames, the jaw by 1.3 degrees
-        jaw = model.jaw.transform(np.radians(3 + 4 * s), s, 2 * s)
-        c = MuscleControls((1 - s) * start + s * end, np.eye(3, 4), jaw)
-        truth.append(c)
-        markers.append(forward_markers(model, e, c).markers)
+    # activations change by up to 0.23 between frames, the jaw by 1.3 degrees
+    truth = ramping_controls(k, 4, seed=9, peak=0.7, jaw=lambda s: model.jaw.transform(np.radians(3 + 4 * s), s, 2 * s))
+    markers = [forward_markers(model, e, c).markers for c in truth]
     take = solve_muscles(anatomy, layout.marker_vertices, layout.rest_markers, np.stack(markers), model=model,
                          max_warm_steps=4)
     assert take.activations.shape == (4, k) and take.skin.shape == (4,) + anatomy.scan_vertices.shape
