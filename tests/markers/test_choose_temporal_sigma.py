@@ -94,3 +94,12 @@ def test_rejects_bad_candidates():
         choose_temporal_sigma(P, rate=RATE, candidates_s=(0.02, -0.01))
     with pytest.raises(InputError, match="rate"):
         choose_temporal_sigma(P, rate=0.0)
+
+
+def test_a_marker_missing_at_rest_is_left_to_the_filter_to_warn_about():
+    _, P = _smooth_take(300, 5, frequency_hz=1.0, noise_mm=0.2, seed=6)
+    P[:200, 2] = np.nan  # not seen within the rest window (at most 150 frames at 0.1 s)
+    choice = choose_temporal_sigma(P, rate=RATE)  # the suite turns warnings into errors: none here
+    assert np.isfinite(choice.scores_mm2).all()
+    with pytest.warns(Warning, match="not visible within"):
+        bilateral_filter(P, rate=RATE, temporal_sigma_s=choice.sigma_s)  # once, from the filter itself

@@ -185,6 +185,7 @@ class PerformanceWriter:
         if (rig.n_frames, rig.n_vertices) != (self.n_frames, self.mesh.n_vertices):
             raise InputError(f"rig: {rig.n_frames} frames x {rig.n_vertices} vertices, the result has "
                              f"{self.n_frames} x {self.mesh.n_vertices}")
+        self._wait_for_rig()  # a rig given again replaces the first only once that is on disk
         self._rig = rig.quantized() if precision == "int16" else rig
         # Written on a second thread (the file writes release the GIL): the caller goes on with its
         # report while 0.26 GB go to disk at 700k vertices; finish() and abort() wait for it.

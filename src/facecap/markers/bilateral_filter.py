@@ -34,11 +34,11 @@ class _FilterSetup(NamedTuple):
 
 
 def _rest_configuration(P: np.ndarray, valid: np.ndarray, rest: int, sigma_rest: float,
-                        cut: float) -> tuple[np.ndarray, np.ndarray]:
+                        cut: float, *, warn: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """``(ref (M, 3), has_rest (M,))``: each marker's rest position and whether it is seen near the rest frame.
 
     Anchored at (or nearest to) the rest frame, Gaussian-averaged around it;
-    warns about markers not seen within the rest window.
+    warns about markers not seen within the rest window unless ``warn`` is False.
     """
     T, M, _ = P.shape
     W_rest = int(cut * sigma_rest + 0.5)
@@ -55,7 +55,7 @@ def _rest_configuration(P: np.ndarray, valid: np.ndarray, rest: int, sigma_rest:
     den_rest = g_win.sum(axis=0)
     ref = anchor + np.einsum("tm,tmd->md", g_win, dev) / np.where(den_rest > 0, den_rest, 1.0)[:, None]
     lost = valid.any(axis=0) & ~has_rest
-    if np.any(lost):
+    if warn and np.any(lost):
         warnings.warn(
             f"bilateral_filter: {int(lost.sum())} marker(s) not visible within {W_rest} frames of "
             f"rest_frame {rest} (columns {np.flatnonzero(lost)[:10].tolist()}...); "

@@ -127,7 +127,8 @@ def choose_temporal_sigma(
     for sigma in sigmas:
         sigma_t = sigma * frame_rate
         reach = int(cut * sigma_t + 0.5)  # the filter's window radius: context each block needs
-        rest_state = _rest_configuration(P, valid, rest, average * sigma_t, cut)  # the whole take's rest
+        # the whole take's rest; silent: the filter itself warns of markers missing there, once
+        rest_state = _rest_configuration(P, valid, rest, average * sigma_t, cut, warn=False)
         squared_sum, count = 0.0, 0
         for first, stop in blocks:
             lo, hi = max(0, first - reach), min(T, stop + reach)
