@@ -179,7 +179,7 @@ def test_the_local_cluster_gives_the_synchronous_result(case, solved, tmp_path) 
 
 
 @pytest.mark.parametrize("problem", ["no model", "not a model", "map names markers not in the take",
-                                     "markers off the model", "frames outside the take"])
+                                     "too few markers on the model", "frames outside the take"])
 def test_bad_input_is_one_line_naming_the_file(case, tmp_path, capsys, problem) -> None:
     args = {"--model": str(case.model_dir), "--markers": str(case.take), "--map": str(case.map)}
     named = None
@@ -194,12 +194,12 @@ def test_bad_input_is_one_line_naming_the_file(case, tmp_path, capsys, problem) 
         doc["NOSE_TIP"] = 0
         args["--map"] = named = str(tmp_path / "map.json")
         Path(named).write_text(json.dumps(doc))
-    elif problem == "markers off the model":
+    elif problem == "too few markers on the model":
         from facecap.anatomy import load_anatomy
 
-        anatomy = load_anatomy(case.model_dir)
+        off = np.flatnonzero(~load_anatomy(case.model_dir).skin_meshed)  # ear, scalp, neck vertices
         doc = json.loads(case.map.read_text())
-        doc["M007"] = int(np.flatnonzero(~anatomy.skin_meshed)[0])  # an ear or scalp vertex
+        doc = {label: (v if i < 5 else int(off[i % off.size])) for i, (label, v) in enumerate(doc.items())}
         args["--map"] = named = str(tmp_path / "map.json")
         Path(named).write_text(json.dumps(doc))
     else:
@@ -212,6 +212,30 @@ def test_bad_input_is_one_line_naming_the_file(case, tmp_path, capsys, problem) 
     err = capsys.readouterr().err.strip().splitlines()
     errors = [line for line in err if line.startswith("facecap: error:")]
     assert len(errors) == 1 and named in errors[0], err
-    if problem == "markers off the model":
-        assert "M007" in errors[0] and "off the model" in errors[0]
+    if problem == "too few markers on the model":
+        assert "only 5 markers land on the model" in errors[0]
     assert not (tmp_path / "out").exists()
+
+
+def test_markers_off_the_model_are_left_out_with_a_warning(case, solved, tmp_path, capsys) -> None:
+    """A real map has markers the face model cannot carry (eyelids, ears): the solve goes on without them."""
+    from facecap.anatomy import load_anatomy
+
+    off = int(np.flatnonzero(~load_anatomy(case.model_dir).skin_meshed)[0])
+    doc = json.loads(case.map.read_text())
+    doc["M007"] = off
+    moved = tmp_path / "map.json"
+    moved.write_text(json.dumps(doc))
+    out = tmp_path / "out"
+    assert main(["solve-muscles", "--model", str(case.model_dir), "--markers", str(case.take), "--map", str(moved),
+                 "--out", str(out), "--no-smooth", "--scheduler", "synchronous", "--frames", "0:3",
+                 "--chunk-frames", "3", "--max-warm-steps", "3"]) == 0
+    err = capsys.readouterr().err
+    assert "M007" in err and "left out of the solve" in err
+    report = json.loads((out / "report.json").read_text())
+    assert report["markers_left_out"] == ["M007"] and "M007" not in report["marker_residual_mm"]["labels"]
+    assert len(report["marker_residual_mm"]["labels"]) == N_MARKERS - 1
+    assert read_result(out).markers.shape == (3, N_MARKERS - 1, 3)
+    # the other 119 markers still give the forward model's face (as with all 120, test above)
+    error = np.linalg.norm(read_result(out).frames().astype(np.float64) - case.skin[:3], axis=2)
+    assert error.mean() < NOISE_MM, error.mean()

@@ -38,6 +38,7 @@ BONE_TRANSFORMS_FILE = "bone_transforms.npz"
 """``cranium``, ``mandible`` (T, 3, 4), ``jaw_pose`` (T, 3) and ``frames`` (T,) of the result."""
 
 DEFAULT_CHUNK_FRAMES = 32
+_MIN_MARKERS = 6  # MuscleSolver's min_markers: fewer cannot hold head, jaw and muscles
 
 
 class MuscleTakeResult(NamedTuple):
@@ -210,21 +211,36 @@ def solve_muscle_take(
     first, stop = _frame_range(frames, take.n_frames, take.source_path)
     n = stop - first
 
+    vertices = prepared.constrained_vertices
+    positions = prepared.positions
+    scan_points = prepared.scan_points
+    weights = np.asarray(anatomy.skin_weights)[vertices]
+    off_model = ~np.asarray(anatomy.skin_meshed)[vertices] | (np.abs(weights).max(axis=1) > 3.0)
+    left_out: list[str] = []
+    if off_model.any():
+        # the solver's own test (marker_embedding), said with the markers' names. A real map often has
+        # markers the face model cannot carry (eyelids, ears): they are left out of the solve, as animate
+        # leaves out markers outside its map (and out of the rest fit below: their normals are not the skin's)
+        left_out = [labels[i] for i in np.flatnonzero(off_model)]
+        keep = ~off_model
+        if keep.sum() < _MIN_MARKERS:
+            raise CorrespondenceError(f"only {int(keep.sum())} markers land on the model {model_dir} (at least "
+                                      f"{_MIN_MARKERS} needed); the others are outside the meshed face (ears, scalp, "
+                                      "neck, eyes, inner lips)", path=map_name)
+        message = (f"markers {', '.join(left_out)} land off the model {model_dir} (outside the meshed face: ears, "
+                   "scalp, neck, eyes, inner lips): left out of the solve")
+        warnings.warn(message, FacecapWarning, stacklevel=2)
+        caught.append(message)
+        labels = tuple(labels[i] for i in np.flatnonzero(keep))
+        vertices, scan_points, positions = vertices[keep], scan_points[keep], positions[:, keep]
+
     # the rest markers in the scan's frame: the rest frame moved rigidly onto the map's points lifted
     # by the marker height (the solver measures each marker's own offset from its skin point there;
     # the cranium then carries the scan into the take's coordinates)
-    vertices = prepared.constrained_vertices
-    rest_take = prepared.positions[rest_frame]
-    lifted = prepared.scan_points + float(marker_offset_mm) * _vertex_normals(scan.vertices, scan.faces, vertices)
+    rest_take = positions[rest_frame]
+    lifted = scan_points + float(marker_offset_mm) * _vertex_normals(scan.vertices, scan.faces, vertices)
     fit = rigid_fit(rest_take, lifted)
     rest_scan = rest_take @ fit.rotation.T + fit.translation
-    weights = np.asarray(anatomy.skin_weights)[vertices]
-    off_model = ~np.asarray(anatomy.skin_meshed)[vertices] | (np.abs(weights).max(axis=1) > 3.0)
-    if off_model.any():  # the solver's own test (marker_embedding), said with the markers' names
-        names = [labels[i] for i in np.flatnonzero(off_model)]
-        raise CorrespondenceError(f"markers {', '.join(names[:8])}{' ...' if len(names) > 8 else ''} land off the "
-                                  f"model {model_dir}: their scan vertices are outside the meshed face (ears, scalp, "
-                                  "neck, inner lips)", path=map_name)
     try:
         marker_embedding(anatomy, vertices, rest_scan)
     except InputError as exc:
@@ -232,7 +248,7 @@ def solve_muscle_take(
                          "is the map on this model's scan?", path=take.source_path) from None
 
     options = dict(solver_options or {})
-    stage_obj = MuscleFrameStage(model_dir, vertices, rest_scan, prepared.positions[first:stop], options=options,
+    stage_obj = MuscleFrameStage(model_dir, vertices, rest_scan, positions[first:stop], options=options,
                                  model_sha256=model_folder_sha256(model_dir))
     own_work = work_dir is None
     work = Path(tempfile.mkdtemp(prefix="facecap-muscles-")) if own_work else Path(work_dir)
@@ -250,6 +266,7 @@ def solve_muscle_take(
         stage(f"writing {out_dir}")
         result = {name: run.load(name, mmap=name == "vertices") for name in run.array_specs}
         report = _report(result, labels, anatomy, first, rest_frame, run, prepared, caught, flag_names)
+        report["markers_left_out"] = left_out
         metadata = {
             "source_files": {"model": str(model_dir), "markers": take.source_path, "map": map_name},
             "source_units": {"scan": "mm", "markers": take.source_unit},
@@ -275,7 +292,7 @@ def solve_muscle_take(
                 out[:] = skin[lo:hi]
 
             writer.stream(compute, batch_frames=32, progress=progress, desc="solve-muscles")
-            np.save(writer.path("markers.npy"), prepared.positions[first:stop].astype(np.float32))
+            np.save(writer.path("markers.npy"), positions[first:stop].astype(np.float32))
             _write_activations(writer.path(ACTIVATIONS_FILE), first, anatomy.muscle_names, result["activations"])
             _write_npz(writer.path(BONE_TRANSFORMS_FILE), cranium=result["cranium"], mandible=result["mandible"],
                        jaw_pose=result["jaw_pose"], frames=np.arange(first, stop, dtype=np.int64))
