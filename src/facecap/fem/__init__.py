@@ -16,7 +16,10 @@ Stresses in kPa, energies in uJ, forces in mN (see ``docs/fem.md``).
   ``f_k``, the stiffness matrix in a reused sparsity pattern.
 - :class:`QuasistaticSolver`, :func:`solve_quasistatic`, :class:`QuasistaticResult`
   (``solve_quasistatic.py``): the equilibrium of eq. 2 by projected Newton with an energy
-  line search, and the reused factorisation for the Jacobians of eq. 5 and 6.
+  line search, and the reused factorisation for the Jacobians of eq. 5 and 6; an optional
+  external energy (:class:`ExternalEnergy`, :class:`ExternalResponse`) joins the solve.
+- :class:`SphereContact` (``sphere_contact.py``): a kinematic sphere's penalty contact on
+  nodes or embedded points, an external energy of the solve (sec. 9).
 """
 
 from __future__ import annotations
@@ -24,7 +27,8 @@ from __future__ import annotations
 from .mooney_rivlin import MooneyRivlin, StressResponse, mooney_rivlin_response
 from .muscle_fibre import MuscleFibre, active_force_length, fibre_response, passive_force_length
 from .flesh_model import ElementResponse, FleshModel
-from .solve_quasistatic import QuasistaticResult, QuasistaticSolver, solve_quasistatic
+from .solve_quasistatic import ExternalEnergy, ExternalResponse, QuasistaticResult, QuasistaticSolver, solve_quasistatic
+from .sphere_contact import SphereContact
 
 __all__ = [
     "MooneyRivlin",
@@ -39,4 +43,7 @@ __all__ = [
     "QuasistaticSolver",
     "QuasistaticResult",
     "solve_quasistatic",
+    "ExternalEnergy",
+    "ExternalResponse",
+    "SphereContact",
 ]

@@ -5,22 +5,57 @@ projected onto the positive semi-definite cone (so the step is a descent directi
 for inverted or strongly compressed tetrahedra), factors it once with a sparse Cholesky-
 type solver, and backtracks along the step until the energy decreases enough (Armijo).
 The factor of the last stiffness stays available for the Jacobians of eq. 5 and 6.
+
+An optional external energy (:class:`ExternalEnergy`, e.g. the penalty contact of a
+kinematic sphere, :class:`~facecap.fem.SphereContact`) joins the elastic energy, its
+forces and its (positive semi-definite) stiffness in every step; without one the solve
+is exactly the elastic one.
 """
 
 from __future__ import annotations
 
 import time
 import warnings
-from typing import Any, Literal, NamedTuple
+from typing import Any, Literal, NamedTuple, Protocol
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..deform.factor_spd import SpdFactor
 from ..errors import FacecapWarning, InputError, SolverError
 from ..typing import FloatArray
 from .flesh_model import ElementResponse, FleshModel
 
-__all__ = ["QuasistaticSolver", "QuasistaticResult", "solve_quasistatic"]
+__all__ = ["QuasistaticSolver", "QuasistaticResult", "solve_quasistatic", "ExternalEnergy", "ExternalResponse"]
+
+
+class ExternalResponse(NamedTuple):
+    """An external energy term evaluated at one configuration.
+
+    Attributes
+    ----------
+    energy : float, uJ
+    forces : (n, 3) float64 array, mN
+        ``-dE_ext/dx`` on every node (Dirichlet rows included; the solver reads the free ones).
+    stiffness : (3n, 3n) scipy.sparse matrix, mN / mm, or None
+        ``d2E_ext/dx2``, positive semi-definite, coordinates interleaved (row ``3 i + c`` is
+        node ``i``, axis ``c``); None when not asked for.
+    """
+
+    energy: float
+    forces: FloatArray
+    stiffness: Any
+
+
+class ExternalEnergy(Protocol):
+    """What :meth:`QuasistaticSolver.solve` accepts as ``external``: an energy of the node positions.
+
+    ``evaluate(x, stiffness=...)`` returns an :class:`ExternalResponse`; its stiffness must be
+    positive semi-definite (the Newton steps stay descent directions) and is asked for only
+    where a step needs it.
+    """
+
+    def evaluate(self, x: FloatArray, *, stiffness: bool = True) -> ExternalResponse: ...
 
 
 class QuasistaticResult(NamedTuple):
@@ -37,7 +72,7 @@ class QuasistaticResult(NamedTuple):
     residual : float, mN
         Largest free nodal residual force norm at ``positions``.
     energy : float, uJ
-        Elastic energy at ``positions``.
+        Elastic energy at ``positions`` (plus the external energy, when the solve had one).
     inverted_tets : int
         Tetrahedra with ``det F <= 0`` at ``positions``.
     inverted_tets_initial : int
@@ -121,6 +156,7 @@ class QuasistaticSolver:
         self._state: ElementResponse | None = None
         self._positions: FloatArray | None = None
         self._activations: FloatArray | None = None
+        self._external: ExternalEnergy | None = None
 
     def _initial_positions(self, dirichlet_positions: Any, x0: Any) -> FloatArray:
         model = self.model
@@ -138,7 +174,7 @@ class QuasistaticSolver:
         return x
 
     def solve(self, activations: FloatArray, dirichlet_positions: FloatArray,
-              x0: FloatArray | None = None) -> QuasistaticResult:
+              x0: FloatArray | None = None, *, external: ExternalEnergy | None = None) -> QuasistaticResult:
         """Equilibrium positions under ``activations`` with the Dirichlet nodes at ``dirichlet_positions``.
 
         Parameters
@@ -150,6 +186,11 @@ class QuasistaticSolver:
         x0 : (n, 3) float64 array, mm, optional
             Initial guess (the previous frame's solution, interpolated states in a line
             search); default the rest positions. Its Dirichlet rows are replaced.
+        external : ExternalEnergy, optional
+            An energy added to the elastic one (a contact penalty, say): its forces join the
+            residual, its energy the line search, its stiffness every Newton step and the
+            factor of :meth:`factor` (so the Jacobians are those of the total energy). None
+            (default): the elastic solve, unchanged.
 
         Returns
         -------
@@ -178,8 +219,12 @@ class QuasistaticSolver:
         free = model.free_dofs
         timings = {"assembly": 0.0, "factorisation": 0.0, "solves": 0.0, "line_search": 0.0}
         self._drop_factor()
+        self._external = external
         t = time.perf_counter()
         state = model.evaluate(x, a, definiteness_fix=False)
+        extra = None  # the external stiffness on the free dofs, where a step needs it
+        if external is not None:
+            state, extra = self._with_external(state, x, stiffness=True)
         timings["assembly"] += time.perf_counter() - t
         inverted_initial = state.inverted
         iterations = projected_steps = 0
@@ -196,12 +241,14 @@ class QuasistaticSolver:
             if state.element_stiffness is None:  # the line search's state has forces, not stiffness
                 t = time.perf_counter()
                 state = model.evaluate(x, a, definiteness_fix=False)
+                if external is not None:
+                    state, extra = self._with_external(state, x, stiffness=True)
                 timings["assembly"] += time.perf_counter() - t
             r = residual.reshape(-1)
             step = None
             if wait_before_exact == 0:
                 assert state.element_stiffness is not None
-                step = self._newton_step(state.element_stiffness, r, timings)
+                step = self._newton_step(state.element_stiffness, r, timings, extra=extra)
                 if step is None:
                     wait_before_exact = 1
             if step is None:
@@ -209,7 +256,7 @@ class QuasistaticSolver:
                 t = time.perf_counter()
                 projected = model.element_stiffness(state.stress_derivative, definiteness_fix=True)
                 timings["assembly"] += time.perf_counter() - t
-                step = self._newton_step(projected, r, timings, must_succeed=True)
+                step = self._newton_step(projected, r, timings, must_succeed=True, extra=extra)
                 assert step is not None
                 projected_steps += 1
             t = time.perf_counter()
@@ -225,11 +272,30 @@ class QuasistaticSolver:
         return QuasistaticResult(x, converged, iterations, residual_max, state.energy, state.inverted,
                                  inverted_initial, timings, projected_steps)
 
+    def _with_external(self, state: ElementResponse, x: FloatArray, *,
+                       stiffness: bool) -> tuple[ElementResponse, Any]:
+        """The elastic state plus the external term's energy and forces, and its free-dof stiffness (or None)."""
+        assert self._external is not None
+        response = self._external.evaluate(x, stiffness=stiffness)
+        forces = np.asarray(response.forces, dtype=np.float64)
+        if forces.shape != state.forces.shape:
+            raise InputError(f"external: forces of shape {forces.shape}, expected {state.forces.shape}")
+        state = state._replace(energy=state.energy + float(response.energy), forces=state.forces + forces)
+        if not stiffness or response.stiffness is None:
+            return state, None
+        free = self.model.free_dofs
+        return state, sp.csr_matrix(response.stiffness)[free][:, free]
+
     def _newton_step(self, element_stiffness: FloatArray, r: FloatArray, timings: dict[str, float], *,
-                     must_succeed: bool = False) -> FloatArray | None:
-        """Solve ``K step = r``; None where ``K`` is not positive definite (unless ``must_succeed``)."""
+                     must_succeed: bool = False, extra: Any = None) -> FloatArray | None:
+        """Solve ``K step = r``; None where ``K`` is not positive definite (unless ``must_succeed``).
+
+        ``extra``: the external energy's free-dof stiffness, added to ``K``.
+        """
         t = time.perf_counter()
         K = self.model.assemble(element_stiffness, free_only=True)
+        if extra is not None:
+            K = (K + extra).tocsr()
         timings["assembly"] += time.perf_counter() - t
         t = time.perf_counter()
         try:
@@ -267,6 +333,8 @@ class QuasistaticSolver:
             trial[free] += alpha * step
             trial_x = trial.reshape(x.shape)
             response = self.model.evaluate(trial_x, a, derivatives=1)
+            if self._external is not None:
+                response = self._with_external(response, trial_x, stiffness=False)[0]
             if np.isfinite(response.energy) and response.energy <= energy + 1e-4 * alpha * slope + noise:
                 return trial_x, alpha, response
             alpha *= 0.5
@@ -293,8 +361,13 @@ class QuasistaticSolver:
         state = self._state
         assert state.element_stiffness is not None and state.stress_derivative is not None
         if self._factor is None:
+            extra = None
+            if self._external is not None:
+                extra = self._with_external(state, self._positions, stiffness=True)[1]
             if self.exact_jacobians:
                 stiffness = self.model.assemble(state.element_stiffness, free_only=True)
+                if extra is not None:
+                    stiffness = (stiffness + extra).tocsr()
                 try:
                     self._factor = SpdFactor(stiffness, backend=self.backend)
                     self._element_stiffness, self._stiffness = state.element_stiffness, stiffness
@@ -306,6 +379,8 @@ class QuasistaticSolver:
                                   "stiffness and are approximate", FacecapWarning, stacklevel=2)
             self._element_stiffness = self.model.element_stiffness(state.stress_derivative, definiteness_fix=True)
             self._stiffness = self.model.assemble(self._element_stiffness, free_only=True)
+            if extra is not None:
+                self._stiffness = (self._stiffness + extra).tocsr()
             self._factor = SpdFactor(self._stiffness, backend=self.backend)
             self.jacobian_stiffness = "projected"
         return self._factor
@@ -366,9 +441,14 @@ class QuasistaticSolver:
                              f"(c, {model.dirichlet_nodes.size}, 3), got {v.shape}")
         rhs = np.empty((V.shape[0], model.n_nodes, 3))
         u = np.zeros((model.n_nodes, 3))
+        external = None
+        if self._external is not None and self._positions is not None:
+            external = self._external.evaluate(self._positions, stiffness=True).stiffness
         for i, vi in enumerate(V):
             u[model.dirichlet_nodes] = vi
             rhs[i] = -model.element_action(self._element_stiffness, u)
+            if external is not None:  # the external term's coupling of the free nodes to the moved ones
+                rhs[i] -= (external @ u.reshape(-1)).reshape(-1, 3)
         out = self.solve_linear(rhs)
         out[:, model.dirichlet_nodes] = V
         return out[0] if single else out
