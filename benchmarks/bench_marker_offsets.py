@@ -139,7 +139,7 @@ def what_if_error(synthetic: SyntheticCase, folder: Path, *, temporal_sigma_s: f
         P = bilateral_filter(prepared.positions, rate=markers.rate, temporal_sigma_s=temporal_sigma_s)
         solver = ThinShellSolver(V, F, prepared.constrained_vertices)
     offsets = MarkerOffsets(V, F, solver)
-    rest = animate_module._rest_markers(P, 0, DEFAULT_REST_AVERAGE_S * markers.rate)
+    rest = animate_module.rest_average(P, 0, DEFAULT_REST_AVERAGE_S * markers.rate)
     centres = prepared.scan_points + offsets.marker_offset_mm * offsets.rest_normals
     D = TriharmonicWarp(rest, centres)(P) - centres[None]
     result = V.astype(np.float32)[None] + solver.displacements(offsets.skin_displacements(D))

@@ -17,7 +17,7 @@ import pytest
 
 from facecap.anatomy import build_anatomy
 from facecap.cli import main
-from facecap.io import read_result, write_markers
+from facecap.io import read_markers, read_result, write_markers
 from facecap.muscles import MuscleControls, MuscleModel, forward_markers, marker_embedding
 from facecap.structures import MarkerSequence
 from facecap.synth import choose_marker_vertices, load_ict_sample
@@ -37,6 +37,7 @@ class Case(NamedTuple):
     activations: np.ndarray  # (T, k) the known controls
     jaw_pose: np.ndarray  # (T, 3)
     skin: np.ndarray  # (T, n, 3) noise-free forward skin, mm
+    crania: np.ndarray  # (T, 3, 4) the head's frames
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,7 @@ def case(tmp_path_factory) -> Case:
     rng = np.random.default_rng(5)
     k = model.n_muscles
     target = rng.uniform(0, 0.6, k) * (rng.uniform(size=k) < 0.5)
-    activations, poses, skin, markers = [], [], [], []
+    activations, poses, skin, markers, crania = [], [], [], [], []
     for t in range(N_FRAMES):
         s = t / (N_FRAMES - 1)
         turn = np.radians(2.0 * s)
@@ -71,6 +72,7 @@ def case(tmp_path_factory) -> Case:
         c = MuscleControls(s * target, cranium, model.jaw.transform(np.radians(6 * s), 0.5 * s, s))
         truth = forward_markers(model, e, c, noise_mm=NOISE_MM, seed=100 + t)
         activations.append(c.activations)
+        crania.append(cranium)
         poses.append(model.jaw.pose(c.mandible))
         skin.append(truth.skin)
         markers.append(truth.markers)
@@ -80,12 +82,12 @@ def case(tmp_path_factory) -> Case:
     mapping = root / "map.json"
     mapping.write_text(json.dumps({label: int(v) for label, v in zip(labels, vertices)}))
     return Case(root / "model", take, mapping, labels, tuple(anatomy.muscle_names), np.stack(activations),
-                np.stack(poses), np.stack(skin))
+                np.stack(poses), np.stack(skin), np.stack(crania))
 
 
 def _solve(case: Case, out: Path, *extra: str) -> int:
     return main(["-q", "solve-muscles", "--model", str(case.model_dir), "--markers", str(case.take),
-                 "--map", str(case.map), "--out", str(out), "--no-smooth", *extra])
+                 "--map", str(case.map), "--out", str(out), "--no-smooth", "--rest-average", "0", *extra])
 
 
 def _activations(out: Path) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -128,6 +130,7 @@ def test_the_result_folder_holds_the_forward_models_face(case, solved) -> None:
     assert report["cold_frames"] == [0, 3] and report["frames_flagged"] == 0
     info = json.loads((out / "performance.json").read_text())
     assert info["method"] == "sifakis2005-muscle-activations" and info["muscles"] == list(case.muscles)
+    assert info["retarget"] == "rigid" and not info["stabilized"] and not (out / "head_motion.npy").exists()
     assert (out / "activations.png").stat().st_size > 10_000
     assert result.markers is not None and result.markers.shape == (N_FRAMES, N_MARKERS, 3)
 
@@ -228,7 +231,7 @@ def test_markers_off_the_model_are_left_out_with_a_warning(case, solved, tmp_pat
     moved.write_text(json.dumps(doc))
     out = tmp_path / "out"
     assert main(["solve-muscles", "--model", str(case.model_dir), "--markers", str(case.take), "--map", str(moved),
-                 "--out", str(out), "--no-smooth", "--scheduler", "synchronous", "--frames", "0:3",
+                 "--out", str(out), "--no-smooth", "--rest-average", "0", "--scheduler", "synchronous", "--frames", "0:3",
                  "--chunk-frames", "3", "--max-warm-steps", "3"]) == 0
     err = capsys.readouterr().err
     assert "M007" in err and "left out of the solve" in err
@@ -239,3 +242,40 @@ def test_markers_off_the_model_are_left_out_with_a_warning(case, solved, tmp_pat
     # the other 119 markers still give the forward model's face (as with all 120, test above)
     error = np.linalg.norm(read_result(out).frames().astype(np.float64) - case.skin[:3], axis=2)
     assert error.mean() < NOISE_MM, error.mean()
+
+
+def test_a_take_of_another_face_is_warped_onto_the_scan(case, tmp_path, capsys) -> None:
+    """The take 10 % larger than the scan (another actor's face): no rigid fit places it (markers 6-8 mm off), so
+    'auto' maps it by animate's triharmonic warp, stabilised, and the known controls still come back.
+
+    The take holds its rest for 8 frames at 30 Hz first: the rest markers are then the default average round
+    the rest frame (0.1 s, 2.5 sigma = 8 frames) of the rest alone, as in a real take."""
+    take = read_markers(case.take)
+    held = 8
+    positions = np.concatenate([np.repeat(take.positions[:1], held, axis=0), take.positions])
+    centre = np.nanmean(take.positions[0], axis=0)
+    bigger = tmp_path / "bigger.csv"
+    write_markers(MarkerSequence(centre + 1.1 * (positions - centre), take.labels, rate=30.0), bigger)
+    out = tmp_path / "out"
+    assert main(["solve-muscles", "--model", str(case.model_dir), "--markers", str(bigger), "--map", str(case.map),
+                 "--out", str(out), "--no-smooth", "--scheduler", "synchronous", "--chunk-frames", "14",
+                 "--max-warm-steps", "3"]) == 0
+    assert "triharmonic warp" in capsys.readouterr().err
+    info = json.loads((out / "performance.json").read_text())
+    assert info["retarget"] == "warp" and info["stabilized"] and info["take_to_scan_at_rest"] is None
+    assert info["parameters"]["rest_average_s"] == 0.1
+    result = read_result(out)
+    assert result.head_motion.shape == (held + N_FRAMES, 4, 4)
+    _, _, activations = _activations(out)
+    assert np.abs(activations[held:] - case.activations).mean() <= 0.05
+    with np.load(out / "bone_transforms.npz") as bones:
+        assert np.abs(np.degrees(bones["jaw_pose"][held:, 0] - case.jaw_pose[:, 0])).max() < 0.5
+        solved_crania = bones["cranium"][held:]
+    # the expression itself, the head's frame taken out: the solved one from the result, the true one from the truth
+    V = result.frames().astype(np.float64)[held:]
+    for t in range(N_FRAMES):
+        M, m = solved_crania[t][:, :3], solved_crania[t][:, 3]
+        C, c = case.crania[t][:, :3], case.crania[t][:, 3]
+        face = np.linalg.solve(M, (V[t] - m).T).T
+        truth = np.linalg.solve(C, (case.skin[t] - c).T).T
+        assert np.linalg.norm(face - truth, axis=1).mean() < 2 * NOISE_MM, t

@@ -644,6 +644,16 @@ def _add_solve_muscles(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--frames", default=None, metavar="A:B", help="solve only take frames A <= frame < B [all]")
     p.add_argument("--marker-offset", type=float, default=1.5,
                    help="marker centre height above the skin, mm: places the rest frame on the scan [1.5]")
+    p.add_argument("--rest-average", type=float, default=0.1,
+                   help="Gaussian sigma, s, of the average round the rest frame that gives the rest markers, as for "
+                        "animate; 0: the rest frame alone [0.1]")
+    p.add_argument("--retarget", choices=("auto", "rigid", "warp"), default="auto",
+                   help="how the take reaches the scan: 'rigid' (a take of the scanned actor: the rest frame moved "
+                        "rigidly, the cranium solves the head), 'warp' (animate's triharmonic warp: another face, or "
+                        "a loose map), 'auto' (rigid when the rest frame fits within 5 mm, else the warp) [auto]")
+    p.add_argument("--stabilize", default=None,
+                   help="remove rigid head motion before the warp, as for animate: 'off', 'auto', 'consensus' or "
+                        "labels [with the warp auto, rigid off]")
     p.add_argument("--no-smooth", action="store_true", help="skip the spatio-temporal bilateral filter")
     p.add_argument("--temporal-sigma", default="auto", type=_temporal_sigma,
                    help="the filter's temporal sigma in s, or 'auto': chosen for the take by cross-validation [auto]")
@@ -683,7 +693,10 @@ def _cmd_solve_muscles(args: argparse.Namespace) -> int:
         options["marker_noise_mm"] = args.marker_noise
     scheduler = {"local": None}.get(args.scheduler, args.scheduler)
     done = solve_muscle_take(model, take, args.map, args.out, rest_frame=args.rest_frame,
-                             marker_offset_mm=args.marker_offset, smooth=not args.no_smooth,
+                             marker_offset_mm=args.marker_offset, retarget=args.retarget,
+                             rest_average_s=args.rest_average,
+                             stabilize=None if args.stabilize is None else _stabilize_option(args.stabilize),
+                             smooth=not args.no_smooth,
                              temporal_sigma_s=args.temporal_sigma, frames=args.frames, scheduler=scheduler,
                              n_workers=args.workers, work_dir=args.work, chunk_frames=args.chunk_frames,
                              exports=exports, solver_options=options, progress=not args.quiet,
@@ -696,6 +709,56 @@ def _cmd_solve_muscles(args: argparse.Namespace) -> int:
               f"{r['n_markers']} markers, marker rms {'-' if rms is None else f'{rms:.3f}'} mm, "
               f"{r['frames_flagged']} frames flagged (solve {t['solve_s']:.1f} s, "
               f"{len(done.computed)} chunks computed, {len(done.reused)} reused)")
+    return 0
+
+
+def _add_edit_muscles(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "edit-muscles",
+        help="edit a solve-muscles result in muscle space: interpolate, exaggerate, press a sphere (Sifakis et al. 2005)",
+        description="Re-solve the face of a solve-muscles result under edited controls (Sifakis et al. 2005, sec. 9): "
+        "interpolate two frames in activation and bone space, exaggerate every frame by scaling the muscles' "
+        "force-length curves, or press a kinematic sphere on every frame. Writes a result folder like "
+        "solve-muscles'.",
+    )
+    p.add_argument("--result", required=True, help="a solve-muscles result folder")
+    edit = p.add_mutually_exclusive_group(required=True)
+    edit.add_argument("--scale-force-length", type=float, default=None, metavar="X",
+                      help="re-solve every frame with the force-length curves scaled by X > 0 (activations unchanged)")
+    edit.add_argument("--interpolate", type=int, nargs=2, default=None, metavar=("A", "B"),
+                      help="frames A to B of the result (activations.csv's frame numbers), --frames frames")
+    edit.add_argument("--sphere", type=float, nargs=4, default=None, metavar=("CX", "CY", "CZ", "R"),
+                      help="a sphere, centre and radius in mm in the result's coordinates, pressing on every frame")
+    p.add_argument("--sphere-to", type=float, nargs=3, default=None, metavar=("CX", "CY", "CZ"),
+                   help="the sphere's centre at the last frame (it moves linearly) [it stays]")
+    p.add_argument("--frames", type=int, default=None, help="frames of the interpolation, both ends included [30]")
+    p.add_argument("--model", default=None, help="the anatomy model folder [the one performance.json names]")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--export", default="", help="exports, comma-separated, as for animate")
+    p.set_defaults(func=_cmd_edit_muscles)
+
+
+def _cmd_edit_muscles(args: argparse.Namespace) -> int:
+    from .io.export_result import parse_export_formats
+    from .muscles import edit_muscles
+
+    exports = parse_export_formats(args.export)  # before any long work
+    if args.sphere_to is not None and args.sphere is None:
+        raise FacecapError("--sphere-to: only with --sphere")
+    if args.interpolate is None and args.frames is not None:
+        raise FacecapError("--frames: only with --interpolate")
+    done = edit_muscles(args.result, args.out, scale_force_length=args.scale_force_length,
+                        interpolate=None if args.interpolate is None else tuple(args.interpolate),
+                        n_frames=30 if args.frames is None else args.frames, sphere=args.sphere, sphere_to=args.sphere_to, model_dir=args.model,
+                        exports=exports, progress=not args.quiet)
+    if not args.quiet:
+        r = done.report
+        line = (f"wrote {done.out_dir}: {done.n_frames} frames ({r['edit']['kind']}), "
+                f"{len(r['not_converged_frames'])} not converged, solve {r['timings']['solve_s']:.1f} s")
+        if "sphere" in r:
+            line += (f", deepest penetration {r['sphere']['max_scan_penetration_mm']:.3f} mm (scan vertices), "
+                     f"{r['sphere']['max_skin_node_penetration_mm']:.3f} mm (skin nodes)")
+        print(line)
     return 0
 
 
@@ -736,6 +799,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_remove_wrinkles(sub)
     _add_build_anatomy(sub)
     _add_solve_muscles(sub)
+    _add_edit_muscles(sub)
     _add_demo(sub)
     for action in sub.choices.values():  # let -q/--quiet also follow the command
         action.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,

@@ -329,7 +329,7 @@ def animate_scan(
         )
         timings["condition_markers_s"] = time.perf_counter() - t
 
-        rest_markers = check_warp_sources(_rest_markers(prepared.positions, rest_frame, rest_average_s * markers.rate))
+        rest_markers = check_warp_sources(rest_average(prepared.positions, rest_frame, rest_average_s * markers.rate))
 
         # Beside the set-up, on a second thread: its sparse solves keep one core busy, not two (measured
         # at 700k vertices). The mesh check (a report only: the shell handles what it finds on its own)
@@ -371,7 +371,7 @@ def animate_scan(
     lift = offsets.marker_offset_mm * (offsets.deformed_normals(displacements) if offsets.marker_offset_mm else 0.0)
     marker_residual = np.linalg.norm(prepared.scan_points[None] + displacements + lift - face_markers, axis=2)
     offset_correction = np.linalg.norm(displacements - marker_displacements, axis=2)
-    head_pose = (_head_pose_in_scan(prepared, rest_markers, centres, rest_frame)
+    head_pose = (head_pose_in_scan(prepared, rest_markers, centres, rest_frame)
                  if prepared.head_rotations is not None else None)
 
     T, n = markers.n_frames, scan.n_vertices
@@ -482,7 +482,7 @@ def _timed(function: Any, *args: Any) -> tuple[Any, float]:
     return function(*args), time.perf_counter() - start
 
 
-def _head_pose_in_scan(prepared: PreparedMarkers, sources: np.ndarray, targets: np.ndarray,
+def head_pose_in_scan(prepared: PreparedMarkers, sources: np.ndarray, targets: np.ndarray,
                        rest_frame: int) -> np.ndarray:
     """Head motion per frame as 4x4 transforms in scan coordinates (mm), absolute.
 
@@ -532,7 +532,7 @@ def _save_correspondence(path: Any, prepared: PreparedMarkers, rest_markers: np.
     np.savez(path, **arrays)
 
 
-def _rest_markers(P: np.ndarray, rest_frame: int, sigma_frames: float) -> np.ndarray:
+def rest_average(P: np.ndarray, rest_frame: int, sigma_frames: float) -> np.ndarray:
     """The rest frame's markers refined by a Gaussian average of the frames round it (K, 3), mm.
 
     Computed as the rest sample plus the weighted mean deviation from it (cut at

@@ -29,8 +29,11 @@ from typing import Any, Iterable, Mapping, NamedTuple
 import numpy as np
 
 from ..errors import CorrespondenceError, FacecapWarning, InputError
+from ..markers.rigid_fit import rigid_fit
+from ..validate import as_positive
 
-__all__ = ["solve_muscle_take", "MuscleTakeResult", "ACTIVATIONS_FILE", "BONE_TRANSFORMS_FILE"]
+__all__ = ["solve_muscle_take", "MuscleTakeResult", "ACTIVATIONS_FILE", "BONE_TRANSFORMS_FILE", "RIGID_FIT_LIMIT_MM",
+           "write_muscle_result"]
 
 ACTIVATIONS_FILE = "activations.csv"
 """Per frame and muscle: a header row ``frame,<muscle names>``, one row per frame."""
@@ -38,6 +41,9 @@ BONE_TRANSFORMS_FILE = "bone_transforms.npz"
 """``cranium``, ``mandible`` (T, 3, 4), ``jaw_pose`` (T, 3) and ``frames`` (T,) of the result."""
 
 DEFAULT_CHUNK_FRAMES = 32
+RIGID_FIT_LIMIT_MM = 5.0
+"""``retarget='auto'`` warps the take onto the scan when a rigid fit of its rest frame leaves a marker
+farther than this from its lifted map point (markers normally sit 1-3 mm above the skin)."""
 _MIN_MARKERS = 6  # MuscleSolver's min_markers: fewer cannot hold head, jaw and muscles
 
 
@@ -88,6 +94,9 @@ def solve_muscle_take(
     *,
     rest_frame: int = 0,
     marker_offset_mm: float = 1.5,
+    retarget: str = "auto",
+    rest_average_s: float | None = None,
+    stabilize: bool | str | Iterable[str] | None = None,
     smooth: bool = True,
     temporal_sigma_s: float | str = "auto",
     frames: str | tuple[int, int] | None = None,
@@ -120,6 +129,22 @@ def solve_muscle_take(
         moved rigidly onto the map's points lifted by it along the scan's normals (a take in any
         coordinates). Each marker's own offset is then measured from the model (the solver's rest
         offsets); this height only places the take on the scan.
+    retarget : {'auto', 'rigid', 'warp'}, default 'auto'
+        How the take's markers reach the scan. ``'rigid'``: the rest frame moved rigidly onto the
+        lifted map points, every frame by the same motion (the take is of the scanned actor; the
+        cranium then solves the head's motion). ``'warp'``: as ``animate`` does, the triharmonic
+        warp from the rest markers (averaged round the rest frame) onto the lifted points, every
+        frame through it (a take of another face than the scan's, or a loose map: the bundled
+        AnimFace take on the ICT face). ``'auto'``: rigid when every marker of the rigidly moved
+        rest frame lies within :data:`RIGID_FIT_LIMIT_MM` of its lifted point, else the warp.
+    rest_average_s : float, optional
+        Half-width (Gaussian sigma, s) of the average round the rest frame that gives the rest
+        markers, as for ``animate`` (its noise would otherwise enter every marker's rest offset);
+        0 takes the rest frame alone. Default ``animate``'s (0.1 s).
+    stabilize : bool, str, sequence of str or None, default None
+        Head motion removed before the warp, as for ``animate`` (``True`` picks the stable
+        markers, labels name them). Default: with the warp, stabilised (a warp is a map of the
+        rest pose: a turned head through it would bend); rigid, not (the cranium solves it).
     smooth, temporal_sigma_s
         The bilateral filter, as for ``animate`` (:func:`~facecap.deform.prepare_markers`).
     frames : 'A:B' or (A, B), optional
@@ -158,18 +183,21 @@ def solve_muscle_take(
 
     Notes
     -----
-    ``vertices.npy`` holds the skin in the **take's coordinates** (the cranium's motion
+    Rigid, ``vertices.npy`` holds the skin in the **take's coordinates** (the cranium's motion
     included), like an unstabilised ``animate`` result; ``bone_transforms.npz`` holds the
     cranium (scan rest coordinates to the take's) and the mandible (relative to the cranium,
-    :class:`~facecap.muscles.MuscleControls`).
+    :class:`~facecap.muscles.MuscleControls`). Warped, the skin is in the scan's coordinates (the
+    cranium there carries what stabilisation left of the head's motion), and a stabilised take's
+    head motion is in ``head_motion.npy``, as for a stabilised ``animate`` result.
     """
     from ..anatomy import load_anatomy
-    from ..deform.animate_scan import prepare_markers
+    from ..deform.animate_scan import DEFAULT_REST_AVERAGE_S, head_pose_in_scan, prepare_markers, rest_average
+    from ..deform.marker_offsets import marker_ring
+    from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
     from ..io.export_result import parse_export_formats
     from ..io.read_correspondence import Correspondence, read_correspondence
     from ..io.read_markers import read_markers
-    from ..io.write_performance import PerformanceWriter, import_writers
-    from ..markers.rigid_fit import rigid_fit
+    from ..io.write_performance import import_writers
     from ..runner import run_frames
     from ..structures import MarkerSequence, Mesh
     from .marker_embedding import marker_embedding
@@ -183,6 +211,10 @@ def solve_muscle_take(
             print(f"facecap: {message}", file=sys.stderr, flush=True)
 
     exports = parse_export_formats(exports)
+    if retarget not in ("auto", "rigid", "warp"):
+        raise InputError(f"retarget: expected 'auto', 'rigid' or 'warp', got {retarget!r}")
+    rest_average_s = as_positive(DEFAULT_REST_AVERAGE_S if rest_average_s is None else rest_average_s,
+                                 name="rest_average_s", allow_zero=True)
     if int(chunk_frames) < 1 or int(n_workers) < 1:
         raise InputError("chunk_frames and n_workers: expected positive integers")
     t = time.perf_counter()
@@ -198,49 +230,83 @@ def solve_muscle_take(
 
     t = time.perf_counter()
     caught: list[str] = []
-    with warnings.catch_warnings(record=True) as records:
-        warnings.simplefilter("always", FacecapWarning)
-        stage(f"conditioning {take.n_frames} frames x {take.n_markers} markers")
-        prepared = prepare_markers(take, scan, corr, rest_frame=rest_frame, smooth=smooth,
-                                   temporal_sigma_s=temporal_sigma_s)
-        caught += [str(w.message) for w in records if issubclass(w.category, FacecapWarning)]
-    for message in caught:
-        warnings.warn(message, FacecapWarning, stacklevel=2)
-    timings["condition_markers_s"] = time.perf_counter() - t
+
+    def condition(stabilized: bool | str | Iterable[str]) -> tuple[Any, list[str]]:
+        with warnings.catch_warnings(record=True) as records:
+            warnings.simplefilter("always", FacecapWarning)
+            stage(f"conditioning {take.n_frames} frames x {take.n_markers} markers"
+                  f"{', stabilised' if stabilized else ''}")
+            out = prepare_markers(take, scan, corr, rest_frame=rest_frame, stabilize=stabilized, smooth=smooth,
+                                  temporal_sigma_s=temporal_sigma_s)
+        return out, [str(w.message) for w in records if issubclass(w.category, FacecapWarning)]
+
+    def stabilized_for(mode: str) -> bool | str | Iterable[str]:
+        return stabilize if stabilize is not None else mode == "warp"
+
+    prepared, said = condition(stabilized_for(retarget))  # 'auto' conditions as 'rigid' first
     labels = prepared.labels
     first, stop = _frame_range(frames, take.n_frames, take.source_path)
     n = stop - first
 
     vertices = prepared.constrained_vertices
-    positions = prepared.positions
-    scan_points = prepared.scan_points
+    keep = np.ones(len(labels), dtype=bool)
     weights = np.asarray(anatomy.skin_weights)[vertices]
     off_model = ~np.asarray(anatomy.skin_meshed)[vertices] | (np.abs(weights).max(axis=1) > 3.0)
     left_out: list[str] = []
     if off_model.any():
         # the solver's own test (marker_embedding), said with the markers' names. A real map often has
         # markers the face model cannot carry (eyelids, ears): they are left out of the solve, as animate
-        # leaves out markers outside its map (and out of the rest fit below: their normals are not the skin's)
+        # leaves out markers outside its map, and out of the rigid fit below
         left_out = [labels[i] for i in np.flatnonzero(off_model)]
         keep = ~off_model
         if keep.sum() < _MIN_MARKERS:
             raise CorrespondenceError(f"only {int(keep.sum())} markers land on the model {model_dir} (at least "
                                       f"{_MIN_MARKERS} needed); the others are outside the meshed face (ears, scalp, "
                                       "neck, eyes, inner lips)", path=map_name)
-        message = (f"markers {', '.join(left_out)} land off the model {model_dir} (outside the meshed face: ears, "
-                   "scalp, neck, eyes, inner lips): left out of the solve")
-        warnings.warn(message, FacecapWarning, stacklevel=2)
-        caught.append(message)
+        said.append(f"markers {', '.join(left_out)} land off the model {model_dir} (outside the meshed face: ears, "
+                    "scalp, neck, eyes, inner lips): left out of the solve")
         labels = tuple(labels[i] for i in np.flatnonzero(keep))
-        vertices, scan_points, positions = vertices[keep], scan_points[keep], positions[:, keep]
+        vertices = vertices[keep]
 
-    # the rest markers in the scan's frame: the rest frame moved rigidly onto the map's points lifted
-    # by the marker height (the solver measures each marker's own offset from its skin point there;
-    # the cranium then carries the scan into the take's coordinates)
-    rest_take = positions[rest_frame]
-    lifted = scan_points + float(marker_offset_mm) * _vertex_normals(scan.vertices, scan.faces, vertices)
-    fit = rigid_fit(rest_take, lifted)
-    rest_scan = rest_take @ fit.rotation.T + fit.translation
+    # the map's points lifted along the scan's normals, as animate lifts them (its warp's targets)
+    normals = marker_ring(scan.vertices, scan.faces, prepared.constrained_vertices).rest_normals
+    lifted = prepared.scan_points + float(marker_offset_mm) * normals
+    rigid_gap = _rigid_gap(prepared.positions[rest_frame, keep], lifted[keep])
+    chosen = retarget if retarget != "auto" else ("rigid" if rigid_gap <= RIGID_FIT_LIMIT_MM else "warp")
+    if retarget == "auto" and chosen == "warp":
+        said.append(f"the take's rest frame does not fit the scan rigidly (a marker {rigid_gap:.1f} mm from its map "
+                    f"point, more than {RIGID_FIT_LIMIT_MM:g}): mapped onto it by the triharmonic warp, as animate "
+                    "does (--retarget)")
+        if stabilized_for("warp") != stabilized_for("rigid"):
+            prepared, again = condition(stabilized_for("warp"))
+            said += [m for m in again if m not in said]
+    stabilized = prepared.head_rotations is not None
+    positions = prepared.positions[:, keep]
+    caught += said
+    for message in caught:
+        warnings.warn(message, FacecapWarning, stacklevel=2)
+    timings["condition_markers_s"] = time.perf_counter() - t
+
+    # the rest markers in the scan's frame (the solver measures each marker's own offset from its skin
+    # point there). Rigid: the rest frame moved onto the map's points lifted by the marker height, every
+    # frame by the same motion (the cranium then carries the scan into the take's coordinates). Warped:
+    # animate's correspondence warp c (Bickel et al. 4.1), built from every usable marker as animate builds
+    # it, so both methods see the same markers on the face
+    head_pose = None
+    rest_markers = rest_average(prepared.positions, rest_frame, rest_average_s * take.rate)
+    if chosen == "rigid":
+        rest_take = rest_markers[keep]
+        fit = rigid_fit(rest_take, lifted[keep])
+        rest_scan = rest_take @ fit.rotation.T + fit.translation
+        to_scan = np.hstack([fit.rotation, fit.translation[:, None]])
+    else:
+        sources = check_warp_sources(rest_markers)
+        warp = TriharmonicWarp(sources, lifted)
+        positions = warp(positions)
+        rest_scan = lifted[keep]
+        to_scan = None
+        if stabilized:
+            head_pose = head_pose_in_scan(prepared, sources, lifted, rest_frame)
     try:
         marker_embedding(anatomy, vertices, rest_scan)
     except InputError as exc:
@@ -271,12 +337,17 @@ def solve_muscle_take(
             "source_files": {"model": str(model_dir), "markers": take.source_path, "map": map_name},
             "source_units": {"scan": "mm", "markers": take.source_unit},
             "method": "sifakis2005-muscle-activations",
-            "frame": "take (the skin in the take's coordinates; the cranium in bone_transforms.npz)",
+            "frame": ("take (the skin in the take's coordinates; the cranium in bone_transforms.npz)" if chosen == "rigid"
+                      else "scan (the take warped onto the scan, as animate's; head motion in head_motion.npy)"
+                      if stabilized else "scan (the take warped onto the scan, as animate's)"),
             "rest_frame": int(rest_frame),
-            "take_to_scan_at_rest": np.hstack([fit.rotation, fit.translation[:, None]]).tolist(),
+            "retarget": chosen,
+            "stabilized": stabilized,
+            "take_to_scan_at_rest": None if to_scan is None else to_scan.tolist(),
             "frames": [first, stop],
             "first_frame": int(take.first_frame) + first,
-            "parameters": {"marker_offset_mm": float(marker_offset_mm), "smooth": bool(smooth),
+            "parameters": {"marker_offset_mm": float(marker_offset_mm), "retarget": retarget,
+                           "rest_average_s": rest_average_s, "smooth": bool(smooth),
                            "temporal_sigma_s": prepared.temporal_sigma_s, "chunk_frames": int(chunk_frames),
                            "solver": options,
                            "model_sha256": stage_obj.model_sha256},
@@ -284,40 +355,22 @@ def solve_muscle_take(
             "markers": list(labels),
             **dict(extra_metadata or {}),
         }
-        with PerformanceWriter(out_dir, mesh=scan, rate=take.rate, n_frames=n, exports=exports,
-                               export_options={"progress": progress}) as writer:
-            skin = result["vertices"]
-
-            def compute(lo: int, hi: int, out: np.ndarray) -> None:
-                out[:] = skin[lo:hi]
-
-            writer.stream(compute, batch_frames=32, progress=progress, desc="solve-muscles")
-            np.save(writer.path("markers.npy"), positions[first:stop].astype(np.float32))
-            _write_activations(writer.path(ACTIVATIONS_FILE), first, anatomy.muscle_names, result["activations"])
-            _write_npz(writer.path(BONE_TRANSFORMS_FILE), cranium=result["cranium"], mandible=result["mandible"],
-                       jaw_pose=result["jaw_pose"], frames=np.arange(first, stop, dtype=np.int64))
-            _plot_activations(writer.path("activations.png"), (first + np.arange(n)) / take.rate,
-                              anatomy.muscle_names, result["activations"])
-            timings["write_s"] = time.perf_counter() - t
-            timings["total_s"] = time.perf_counter() - t_all
-            report["timings"] = timings
-            writer.path("report.json").write_text(json.dumps(report, indent=1))
-            metadata["timings"] = timings
-            final = writer.finish(metadata)
+        extra = {"markers.npy": positions[first:stop].astype(np.float32)}
+        if head_pose is not None:
+            extra["head_motion.npy"] = head_pose[first:stop]
+        final = write_muscle_result(out_dir, scan, take.rate, np.arange(first, stop), anatomy.muscle_names, result,
+                                    report=report, metadata=metadata, extra_arrays=extra, exports=exports,
+                                    progress=progress, timings=timings, started=t_all, write_started=t)
     finally:
         if own_work:
             shutil.rmtree(work, ignore_errors=True)
     return MuscleTakeResult(Path(final), n, report, tuple(run.computed), tuple(run.reused))
 
 
-def _vertex_normals(V: np.ndarray, F: np.ndarray, vertices: np.ndarray) -> np.ndarray:
-    """Area-weighted unit normals of the scan at some vertices, (k, 3)."""
-    face_normals = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-    normals = np.zeros_like(V)
-    for corner in range(3):
-        np.add.at(normals, F[:, corner], face_normals)
-    out = normals[vertices]
-    return out / np.maximum(np.linalg.norm(out, axis=1, keepdims=True), 1e-300)
+def _rigid_gap(rest: np.ndarray, targets: np.ndarray) -> float:
+    """The largest distance, mm, of a marker of the rest frame moved rigidly onto its target."""
+    fit = rigid_fit(rest, targets)
+    return float(np.linalg.norm(rest @ fit.rotation.T + fit.translation - targets, axis=1).max())
 
 
 def _write_npz(path: Path, **arrays: np.ndarray) -> None:
@@ -332,11 +385,11 @@ def _write_npz(path: Path, **arrays: np.ndarray) -> None:
                 np.lib.format.write_array(member, np.ascontiguousarray(value), allow_pickle=False)
 
 
-def _write_activations(path: Path, first: int, names: Iterable[str], activations: np.ndarray) -> None:
-    """``activations.csv``: ``frame,<names>``, one row per frame (take frame numbers), 6 decimals."""
+def _write_activations(path: Path, frames: np.ndarray, names: Iterable[str], activations: np.ndarray) -> None:
+    """``activations.csv``: ``frame,<names>``, one row per frame (its number in ``frames``), 6 decimals."""
     lines = [",".join(["frame", *names])]
-    for j, row in enumerate(np.asarray(activations)):
-        lines.append(",".join([str(first + j), *(f"{v:.6f}" for v in row)]))
+    for number, row in zip(frames, np.asarray(activations)):
+        lines.append(",".join([str(int(number)), *(f"{v:.6f}" for v in row)]))
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
@@ -394,3 +447,69 @@ def _report(result: Mapping[str, np.ndarray], labels: tuple[str, ...], anatomy: 
         "notes": list(prepared.notes),
         "warnings": caught,
     }
+
+
+def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float, frames: Any,
+                        muscle_names: Iterable[str], arrays: Mapping[str, Any], *, report: dict[str, Any],
+                        metadata: dict[str, Any], extra_arrays: Mapping[str, np.ndarray] | None = None,
+                        exports: Iterable[str] = (), progress: bool = False, timings: dict[str, float] | None = None,
+                        started: float | None = None, write_started: float | None = None,
+                        desc: str = "solve-muscles") -> Path:
+    """Write a muscle result folder (``solve-muscles``, ``edit-muscles``) in one atomic step.
+
+    Parameters
+    ----------
+    out_dir : str or path-like
+    scan : Mesh
+        The model's scan (the output mesh).
+    rate : float, Hz
+    frames : (T,) int array
+        Frame numbers of the rows (``activations.csv``'s ``frame`` column, ``bone_transforms.npz``'s ``frames``).
+    muscle_names : iterable of str
+    arrays : mapping
+        ``vertices`` (T, n, 3) float32 mm (sliced by frame ranges: an array or a memory map),
+        ``activations`` (T, k), ``cranium`` and ``mandible`` (T, 3, 4), ``jaw_pose`` (T, 3).
+    report, metadata : dict
+        ``report.json`` and what :meth:`PerformanceWriter.finish` adds to ``performance.json``;
+        both get ``timings``.
+    extra_arrays : mapping of file name to array, optional
+        Saved with ``np.save`` (``markers.npy``, ``head_motion.npy``).
+    exports, progress
+        As for :class:`~facecap.io.PerformanceWriter`.
+    timings : dict, optional
+        Updated with ``write_s`` (since ``write_started``, default now) and ``total_s`` (since ``started``).
+    desc : str
+        The progress bar's label.
+
+    Returns
+    -------
+    Path
+        The finished folder.
+    """
+    from ..io.write_performance import PerformanceWriter
+
+    t = time.perf_counter() if write_started is None else write_started
+    frames = np.asarray(frames, dtype=np.int64).reshape(-1)
+    names = tuple(muscle_names)
+    timings = {} if timings is None else timings
+    with PerformanceWriter(out_dir, mesh=scan, rate=rate, n_frames=frames.size, exports=exports,
+                           export_options={"progress": progress}) as writer:
+        skin = arrays["vertices"]
+
+        def compute(lo: int, hi: int, out: np.ndarray) -> None:
+            out[:] = skin[lo:hi]
+
+        writer.stream(compute, batch_frames=32, progress=progress, desc=desc)
+        for name, value in (extra_arrays or {}).items():
+            np.save(writer.path(name), value)
+        _write_activations(writer.path(ACTIVATIONS_FILE), frames, names, arrays["activations"])
+        _write_npz(writer.path(BONE_TRANSFORMS_FILE), cranium=arrays["cranium"], mandible=arrays["mandible"],
+                   jaw_pose=arrays["jaw_pose"], frames=frames)
+        _plot_activations(writer.path("activations.png"), frames / float(rate), names, arrays["activations"])
+        timings["write_s"] = time.perf_counter() - t
+        if started is not None:
+            timings["total_s"] = time.perf_counter() - started
+        report["timings"] = timings
+        writer.path("report.json").write_text(json.dumps(report, indent=1))
+        metadata["timings"] = timings
+        return writer.finish(metadata)
