@@ -67,3 +67,16 @@ def test_free_gives_the_memory_back(backend):
     growth_mb = (_resident_bytes() - before) / 1e6
     np.testing.assert_allclose(A @ x, b, atol=1e-6)
     assert growth_mb < 80, f"{growth_mb:.0f} MB kept over 12 factor/free cycles"
+
+
+@pytest.mark.parametrize("backend", available_backends())
+def test_an_indefinite_matrix_is_refused_by_every_backend(backend):
+    """Both backends refuse what is not SPD (the FEM solver then falls back on the projected stiffness):
+    SuperLU used to factor an indefinite stiffness, so the baseline ran another algorithm than PARDISO."""
+    A = _spd(300, 3)
+    eigenvalues = np.linalg.eigvalsh(A.toarray())
+    shift = 2.0 * float(eigenvalues[0])
+    assert (eigenvalues < shift).any() and (eigenvalues > shift).any()  # A - shift I is indefinite
+    with pytest.raises(SolverError, match="positive definite|factorisation failed"):
+        SpdFactor((A - shift * sp.eye(300)).tocsr(), backend=backend)
+    SpdFactor((A + shift * sp.eye(300)).tocsr(), backend=backend)  # the same sparsity, definite: factored

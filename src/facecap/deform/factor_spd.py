@@ -113,10 +113,15 @@ class SpdFactor:
         from scipy.sparse.linalg import splu
 
         try:
-            self._impl = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                              options={"SymmetricMode": True})
+            lu = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         except RuntimeError as exc:
             raise SolverError(f"sparse factorisation failed: {exc}") from None
+        # Refuse what PARDISO's SPD mode refuses, so that a caller falling back on another matrix (the FEM
+        # solver's projected stiffness) runs the same algorithm on either backend. Without pivoting, on a
+        # symmetric permutation, U's diagonal is the D of A = L D L^T: its signs are A's inertia (Sylvester).
+        if not (np.array_equal(lu.perm_r, lu.perm_c) and np.all(lu.U.diagonal() > 0)):
+            raise SolverError("sparse factorisation failed: the matrix is not positive definite")
+        self._impl = lu
 
     def solve(self, b: FloatArray) -> FloatArray:
         """Solve ``A x = b``.
