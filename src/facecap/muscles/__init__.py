@@ -26,7 +26,12 @@ In the order the solver uses them:
   per-frame :data:`FRAME_FLAGS` bit mask (:func:`flag_names`) and :func:`model_folder_sha256`.
 - :func:`solve_muscle_take`, :class:`MuscleTakeResult` (``solve_muscle_take.py``): what
   ``facecap solve-muscles`` does: model folder, take and map in, a result folder like
-  ``animate``'s out, plus :data:`ACTIVATIONS_FILE` and :data:`BONE_TRANSFORMS_FILE`.
+  ``animate``'s out, plus :data:`ACTIVATIONS_FILE` and :data:`BONE_TRANSFORMS_FILE`
+  (:func:`write_muscle_result`, the writer ``edit-muscles`` shares).
+- :class:`MuscleEditor`, :func:`interpolate_controls`, :func:`edit_muscles` (``edit_muscles.py``):
+  editing in muscle space (sec. 9), what ``facecap edit-muscles`` does: two frames interpolated
+  in activation and bone space, an expression exaggerated by scaling the force-length curves, a
+  kinematic sphere pressing on the face; each frame a quasistatic solve.
 
 Units: mm, radians; see ``docs/muscles.md``.
 """
@@ -42,17 +47,30 @@ from .muscle_model import FOLLOWER_WEIGHT_LIMIT, MuscleModel
 from .muscle_solver import MuscleFrame, MuscleSolver
 from .solve_muscles import MuscleTake, solve_muscles
 from .muscle_frame_stage import FRAME_FLAGS, MuscleFrameStage, flag_names, model_folder_sha256
-from .solve_muscle_take import ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, MuscleTakeResult, solve_muscle_take
+from .solve_muscle_take import (ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, RIGID_FIT_LIMIT_MM, MuscleTakeResult,
+                                solve_muscle_take, write_muscle_result)
+from .edit_muscles import (DEFAULT_PENETRATION_TOLERANCE_MM, EDIT_METHOD, EditedFrame, MuscleEditResult, MuscleEditor,
+                           SphereReport, edit_muscles, interpolate_controls)
 
 __all__ = [
+    "DEFAULT_PENETRATION_TOLERANCE_MM",
+    "EDIT_METHOD",
+    "EditedFrame",
+    "MuscleEditResult",
+    "MuscleEditor",
+    "SphereReport",
+    "edit_muscles",
+    "interpolate_controls",
     "ACTIVATIONS_FILE",
     "BONE_TRANSFORMS_FILE",
+    "RIGID_FIT_LIMIT_MM",
     "FRAME_FLAGS",
     "MuscleFrameStage",
     "MuscleTakeResult",
     "flag_names",
     "model_folder_sha256",
     "solve_muscle_take",
+    "write_muscle_result",
     "ControlPenalty",
     "DEFAULT_MAX_OFFSET_MM",
     "FOLLOWER_WEIGHT_LIMIT",
