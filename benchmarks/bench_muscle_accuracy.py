@@ -81,6 +81,7 @@ from cases import HELD_OUT_CASES, TUNED_CASES, Case, make_case  # noqa: E402
 from facecap.anatomy import build_anatomy, load_anatomy  # noqa: E402
 from facecap.deform.animate_scan import DEFAULT_REST_AVERAGE_S, animate_scan, prepare_markers, rest_average  # noqa: E402
 from facecap.deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM, marker_ring  # noqa: E402
+from facecap.deform.thin_shell import ThinShellSolver  # noqa: E402
 from facecap.deform.triharmonic_warp import TriharmonicWarp  # noqa: E402
 from facecap.errors import FacecapWarning  # noqa: E402
 from facecap.io.read_correspondence import read_correspondence  # noqa: E402
@@ -94,6 +95,27 @@ HELD_OUT = ("held_real_turns", "held_speech_turns", "held_real_still")
 LOO_BAR = 1.1
 ROBUSTNESS_BAR = 1.0 / 3.0
 GLITCH_MM = 5.0
+RESIDUAL_MEDIAN_S = 0.15
+
+
+def residual_correction(V: np.ndarray, observed: np.ndarray, take: "Take", rows: np.ndarray, rest: np.ndarray,
+                        basis: np.ndarray, rate: float, *, vertices: np.ndarray | None = None) -> np.ndarray:
+    """A candidate layer over the muscle face (not the package's): the markers' residual motion, temporally
+    median-filtered (``RESIDUAL_MEDIAN_S``: a glitch of fewer frames than half the window is dropped), carried to
+    the skin by the thin shell of those markers. Returns the correction at ``vertices`` (all by default), (T, n, 3).
+
+    ``observed`` (T, k, 3): the markers' observed motion in face space (through the warp, from rest); the model's
+    own is its skin's, at the markers' points lifted along its normals (``rest``: the same at rest).
+    """
+    from scipy.ndimage import median_filter
+
+    model = _marker_points(V, take.scan.faces, take.corr, rows, DEFAULT_MARKER_OFFSET_MM) - rest[None]
+    residual = observed - model
+    width = max(1, int(round(RESIDUAL_MEDIAN_S * rate))) | 1
+    if width > 1:
+        residual = median_filter(residual, size=(width, 1, 1), mode="nearest")
+    B = basis if vertices is None else basis[:, vertices]
+    return np.einsum("kn,tkc->tnc", B.astype(np.float64), residual)
 
 
 def quiet(function: Any, *args: Any, **kwargs: Any) -> Any:
@@ -113,6 +135,13 @@ class Take:
         self.prepared = quiet(prepare_markers, markers, scan, corr, stabilize=True)
         self.corr = corr.select(list(self.prepared.labels))
         self.rate = markers.rate
+        # the rest markers as animate takes them (the Gaussian average round the rest frame, at the take's rate);
+        # every sequence below starts with them and both methods then take that frame alone (rest_average_s=0)
+        self.rest = rest_average(self.prepared.positions, 0, DEFAULT_REST_AVERAGE_S * self.rate)
+        vertices = self.corr.vertex_indices[np.arange(len(self.corr)), np.argmax(self.corr.weights, axis=1)]
+        self.lifted = self.corr.points(scan.vertices) + DEFAULT_MARKER_OFFSET_MM * marker_ring(
+            scan.vertices, scan.faces, vertices).rest_normals
+        self.vertices = vertices
         self.truth = truth
         model = work / f"model_{name}_{n_tets}"
         if not (model / "anatomy.json").is_file():
@@ -127,13 +156,24 @@ class Take:
         self.on_model = on_model
         self.face_vertices = np.flatnonzero(np.asarray(anatomy.skin_meshed))
 
+    def correction(self, V: np.ndarray, positions: np.ndarray, rate: float) -> np.ndarray:
+        """The candidate residual layer (:func:`residual_correction`) over a muscle result of all markers."""
+        if not hasattr(self, "_basis"):
+            self._basis = quiet(ThinShellSolver, self.scan.vertices, self.scan.faces, self.vertices).basis
+        warp = TriharmonicWarp(self.rest, self.lifted)
+        rows = np.arange(len(self.corr))
+        rest = _marker_points(self.scan.vertices[None], self.scan.faces, self.corr, rows, DEFAULT_MARKER_OFFSET_MM)[0]
+        return residual_correction(V, warp(positions) - self.lifted[None], self, rows, rest, self._basis, rate)
+
     def frames(self, stride: int, n: int) -> np.ndarray:
         return np.arange(0, self.prepared.positions.shape[0], stride)[:n]
 
     def sequence(self, frames: np.ndarray, rate: float, *, without: tuple[int, ...] = (),
                  positions: np.ndarray | None = None) -> tuple[MarkerSequence, Path]:
         """The conditioned markers at ``frames`` (less the ``without`` columns) as a take, and its map."""
-        P = self.prepared.positions[frames] if positions is None else positions
+        P = (self.prepared.positions[frames] if positions is None else positions).copy()
+        if frames[0] == 0:
+            P[0] = self.rest
         keep = np.setdiff1d(np.arange(P.shape[1]), without)
         labels = tuple(self.prepared.labels[i] for i in keep)
         seq = MarkerSequence(np.ascontiguousarray(P[:, keep]), labels, rate=rate)
@@ -146,7 +186,7 @@ class Take:
         out = self.work / f"animate_{tag}"
         shutil.rmtree(out, ignore_errors=True)
         corr = read_correspondence(map_path, self.scan)
-        quiet(animate_scan, self.scan, seq, corr, out, stabilize=False, smooth=False, progress=False)
+        quiet(animate_scan, self.scan, seq, corr, out, stabilize=False, smooth=False, rest_average_s=0.0, progress=False)
         V = np.load(out / "vertices.npy").astype(np.float64)
         shutil.rmtree(out, ignore_errors=True)
         return V
@@ -155,7 +195,7 @@ class Take:
         out = self.work / f"muscles_{tag}"
         shutil.rmtree(out, ignore_errors=True)
         done = quiet(solve_muscle_take, self.model, seq, map_path, out, retarget="warp", stabilize=False,
-                     smooth=False, scheduler="synchronous", chunk_frames=seq.n_frames)
+                     rest_average_s=0.0, smooth=False, scheduler="synchronous", chunk_frames=seq.n_frames)
         V = np.load(out / "vertices.npy").astype(np.float64)
         shutil.rmtree(out, ignore_errors=True)
         return V, done.report
@@ -188,14 +228,13 @@ def _spread_groups(points: np.ndarray, candidates: np.ndarray, n_groups: int, si
 
 
 def leave_markers_out(take: Take, frames: np.ndarray, rate: float, groups: list[tuple[int, ...]]) -> dict[str, Any]:
-    P = take.prepared.positions[frames]
+    P = take.prepared.positions[frames].copy()
+    P[0] = take.rest
     K = P.shape[1]
-    sources = rest_average(P, 0, DEFAULT_REST_AVERAGE_S * rate)
+    sources, lifted = take.rest, take.lifted
     vertices = take.corr.vertex_indices[np.arange(K), np.argmax(take.corr.weights, axis=1)]
-    lifted = take.corr.points(take.scan.vertices) + DEFAULT_MARKER_OFFSET_MM * marker_ring(
-        take.scan.vertices, take.scan.faces, vertices).rest_normals
     faces = take.scan.faces
-    errors: dict[str, list[np.ndarray]] = {"animate": [], "muscles": []}
+    errors: dict[str, list[np.ndarray]] = {"animate": [], "muscles": [], "muscles+residual shell": []}
     per_marker = []
     for g, group in enumerate(groups):
         others = np.setdiff1d(np.arange(K), group)
@@ -212,19 +251,32 @@ def leave_markers_out(take: Take, frames: np.ndarray, rate: float, groups: list[
         for name, V in (("animate", V_animate), ("muscles", V_muscles)):
             predicted = _marker_points(V, faces, take.corr, rows, DEFAULT_MARKER_OFFSET_MM) - rest[None]
             errors[name].append(np.linalg.norm(predicted - reference, axis=2))  # (T, g)
+        # the candidate layer: the muscle face plus the shell of the other markers' residuals
+        rest_o = _marker_points(take.scan.vertices[None], faces, take.corr, others, DEFAULT_MARKER_OFFSET_MM)[0]
+        observed_o = warp(P[:, others]) - warp(sources[others])[None]
+        basis = quiet(ThinShellSolver, take.scan.vertices, faces, vertices[others]).basis
+        support = np.unique(take.corr.vertex_indices[rows])
+        correction = residual_correction(V_muscles, observed_o, take, others, rest_o, basis, rate, vertices=support)
+        V_hybrid = V_muscles.copy()
+        V_hybrid[:, support] += correction
+        predicted = _marker_points(V_hybrid, faces, take.corr, rows, DEFAULT_MARKER_OFFSET_MM) - rest[None]
+        errors["muscles+residual shell"].append(np.linalg.norm(predicted - reference, axis=2))
         for j, i in enumerate(group):
             per_marker.append({"label": take.prepared.labels[i],
                                "animate_mean_mm": float(errors["animate"][-1][:, j].mean()),
                                "muscles_mean_mm": float(errors["muscles"][-1][:, j].mean()),
+                               "hybrid_mean_mm": float(errors["muscles+residual shell"][-1][:, j].mean()),
                                "motion_rms_mm": float(np.sqrt((reference[:, j] ** 2).sum(1).mean()))})
         print(f"  {take.name}: group {g + 1}/{len(groups)} {[take.prepared.labels[i] for i in group]}: animate "
               f"{errors['animate'][-1].mean():.3f} mm ({t1 - t0:.0f} s), muscles {errors['muscles'][-1].mean():.3f} "
-              f"mm ({t2 - t1:.0f} s)", file=sys.stderr)
+              f"mm ({t2 - t1:.0f} s), muscles+residual shell {errors['muscles+residual shell'][-1].mean():.3f} mm",
+              file=sys.stderr)
     stats = {}
     for name, values in errors.items():
         a = np.concatenate([v.ravel() for v in values])
         stats[name] = {"mean_mm": float(a.mean()), "p95_mm": float(np.percentile(a, 95))}
     stats["ratio"] = stats["muscles"]["mean_mm"] / stats["animate"]["mean_mm"]
+    stats["hybrid_ratio"] = stats["muscles+residual shell"]["mean_mm"] / stats["animate"]["mean_mm"]
     stats["muscles_better_markers"] = sum(m["muscles_mean_mm"] <= m["animate_mean_mm"] for m in per_marker)
     stats["held_out_markers"] = len(per_marker)
     stats["per_marker"] = per_marker
@@ -238,6 +290,7 @@ def dense_and_residual(take: Take, frames: np.ndarray, rate: float) -> dict[str,
     t1 = time.perf_counter()
     V_muscles, report = take.run_muscles(seq, map_path, "full")
     t2 = time.perf_counter()
+    V_hybrid = V_muscles + take.correction(V_muscles, seq.positions, rate)
     out: dict[str, Any] = {
         "muscle_marker_rms_mm": report["marker_residual_mm"]["rms"],
         "muscle_marker_max_mm": report["marker_residual_mm"]["max"],
@@ -250,11 +303,12 @@ def dense_and_residual(take: Take, frames: np.ndarray, rate: float) -> dict[str,
     }
     if take.truth is not None:
         truth = np.asarray(take.truth[frames], np.float64)[:, take.face_vertices]
-        for name, V in (("animate", V_animate), ("muscles", V_muscles)):
+        for name, V in (("animate", V_animate), ("muscles", V_muscles), ("hybrid", V_hybrid)):
             e = np.linalg.norm(V[:, take.face_vertices] - truth, axis=2)
             out[f"dense_{name}_mean_mm"] = float(e.mean())
             out[f"dense_{name}_p95_mm"] = float(np.percentile(e, 95))
         out["dense_ratio"] = out["dense_muscles_mean_mm"] / out["dense_animate_mean_mm"]
+        out["dense_hybrid_ratio"] = out["dense_hybrid_mean_mm"] / out["dense_animate_mean_mm"]
     return out
 
 
@@ -275,6 +329,7 @@ def robustness(take: Take, window: int, glitch_frames: int, radius: float, seed:
     rng = np.random.default_rng(seed)
     seq, map_path = take.sequence(frames, take.rate)
     clean = {"animate": take.run_animate(seq, map_path, "clean"), "muscles": take.run_muscles(seq, map_path, "clean")[0]}
+    clean["hybrid"] = clean["muscles"] + take.correction(clean["muscles"], seq.positions, take.rate)
     glitch = 1 + np.arange(window // 2 - glitch_frames // 2, window // 2 - glitch_frames // 2 + glitch_frames)
     rows = []
     for j in (centre, far1, far2):
@@ -285,19 +340,23 @@ def robustness(take: Take, window: int, glitch_frames: int, radius: float, seed:
         seq_g, _ = take.sequence(frames, take.rate, positions=Q)
         moved = {"animate": take.run_animate(seq_g, map_path, "glitch"),
                  "muscles": take.run_muscles(seq_g, map_path, "glitch")[0]}
+        moved["hybrid"] = moved["muscles"] + take.correction(moved["muscles"], seq_g.positions, take.rate)
         near = np.flatnonzero(np.linalg.norm(take.scan.vertices - points[j], axis=1) <= radius)
         row = {"label": take.prepared.labels[int(j)], "vertices_within_radius": int(near.size)}
-        for name in ("animate", "muscles"):
+        for name in ("animate", "muscles", "hybrid"):
             change = np.linalg.norm(moved[name][glitch][:, near] - clean[name][glitch][:, near], axis=2)
             row[f"{name}_mean_mm"] = float(change.mean())
             row[f"{name}_max_mm"] = float(change.max())
         row["ratio"] = row["muscles_mean_mm"] / row["animate_mean_mm"]
+        row["hybrid_ratio"] = row["hybrid_mean_mm"] / row["animate_mean_mm"]
         rows.append(row)
         print(f"  {take.name}: glitch on {row['label']}: animate {row['animate_mean_mm']:.3f} mm, muscles "
-              f"{row['muscles_mean_mm']:.3f} mm (ratio {row['ratio']:.3f})", file=sys.stderr)
+              f"{row['muscles_mean_mm']:.3f} mm (ratio {row['ratio']:.3f}), hybrid {row['hybrid_mean_mm']:.3f} mm",
+              file=sys.stderr)
     mean_ratio = float(np.mean([r["muscles_mean_mm"] for r in rows]) / np.mean([r["animate_mean_mm"] for r in rows]))
     return {"window": [int(frames[1]), int(frames[-1]) + 1], "glitch_frames": glitch.tolist(), "radius_mm": radius,
-            "markers": rows, "ratio_of_means": mean_ratio, "worst_ratio": max(r["ratio"] for r in rows)}
+            "markers": rows, "ratio_of_means": mean_ratio, "worst_ratio": max(r["ratio"] for r in rows),
+            "hybrid_worst_ratio": max(r["hybrid_ratio"] for r in rows)}
 
 
 def load_take(name: str, work: Path, n_tets: int, n_frames: int) -> Take:
@@ -329,19 +388,20 @@ def markdown(results: list[dict[str, Any]], args: argparse.Namespace) -> str:
     lines = [f"Machine: {machine()}. Model: `build_anatomy(scan, n_tets={args.tets})`; every {args.stride}th frame "
              f"(at most {args.frames}); {args.groups} groups of {args.group_size} markers held out per take.", "",
              "| take | set | held out | animate mean / p95 (mm) | muscles mean / p95 (mm) | ratio (bar 1.1) | "
-             "muscles better at | dense animate / muscles (mm) | muscle marker rms (mm) | glitch ratio worst / of "
-             "means (bar 0.33) | s per frame |",
-             "|---|---|---|---|---|---|---|---|---|---|---|"]
+             "muscles better at | +residual shell ratio | dense animate / muscles / +shell (mm) | muscle marker rms "
+             "(mm) | glitch ratio worst / of means (bar 0.33) | +shell glitch worst | s per frame |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in results:
         L, D, R = r["leave_markers_out"], r["full"], r["robustness"]
-        dense = (f"{D['dense_animate_mean_mm']:.3f} / {D['dense_muscles_mean_mm']:.3f}"
+        dense = (f"{D['dense_animate_mean_mm']:.3f} / {D['dense_muscles_mean_mm']:.3f} / {D['dense_hybrid_mean_mm']:.3f}"
                  if "dense_animate_mean_mm" in D else "no truth")
         lines.append(
             f"| {r['name']} | {'held out' if r['held_out'] else 'tuned'} | {L['held_out_markers']} | "
             f"{L['animate']['mean_mm']:.3f} / {L['animate']['p95_mm']:.3f} | {L['muscles']['mean_mm']:.3f} / "
             f"{L['muscles']['p95_mm']:.3f} | **{L['ratio']:.2f}** | {L['muscles_better_markers']}/"
-            f"{L['held_out_markers']} | {dense} | {D['muscle_marker_rms_mm']:.3f} | {R['worst_ratio']:.3f} / "
-            f"{R['ratio_of_means']:.3f} | {D['muscle_s_per_frame']:.2f} |")
+            f"{L['held_out_markers']} | {L['hybrid_ratio']:.2f} | {dense} | {D['muscle_marker_rms_mm']:.3f} | "
+            f"{R['worst_ratio']:.3f} / {R['ratio_of_means']:.3f} | {R['hybrid_worst_ratio']:.3f} | "
+            f"{D['muscle_s_per_frame']:.2f} |")
     return "\n".join(lines) + "\n"
 
 
