@@ -27,8 +27,15 @@ def test_demo_writes_the_animation_report_and_pictures(tmp_path, capsys):
     assert max(scans["registration_mm"]) < 0.2
     # the blended scans against the generator's ground truth: better than the thin shell on the same take
     assert scans["blend"]["mean_mm"] < shell["mean_mm"]
+    # the muscle-driven face on the real take: physics holds (no inverted element, activations in [0, 1])
+    muscles = summary["muscles"]
+    assert muscles["inverted_tets_max"] == 0 and 0.0 < muscles["activation_max"] <= 1 + 1e-4
+    assert muscles["markers_left_out"] == ["Leye_Up", "Reye_Up"]  # the eyelids: off the model
+    activations = np.loadtxt(out / "muscles" / "animface" / "activations.csv", delimiter=",", skiprows=1)[:, 1:]
+    assert activations.shape == (96, muscles["muscles"]) and activations.min() >= -1e-4
     for name in ("frame_comparison.png", "dense_error_over_time.png", "marker_residuals.png",
-                 "scan_selection.png", "methods_error_comparison.png", "methods_error_over_time.png"):
+                 "scan_selection.png", "methods_error_comparison.png", "methods_error_over_time.png",
+                 "muscles_layout.png", "muscles_activations.png", "muscles_frame_comparison.png"):
         image = imread(out / "pictures" / name)
         assert image.ndim == 3 and image.std() > 0.01  # a picture, not a blank canvas
     # a second run replaces the first; no staging folders are left behind
