@@ -8,7 +8,7 @@ Bars measured (issue 11):
 - **Robustness** (the paper's Fig. 7): one marker displaced 5 mm for a few frames moves the skin
   round it at most a third as much as it moves ``animate``'s result.
 
-Run (2 cores; about 8 minutes a case at the default model size)::
+Run (one core a run; 8-17 minutes a case at the default model size, most of it the muscle solves)::
 
     python benchmarks/bench_muscle_accuracy.py --set tuned            # AnimFace + 2 tuned generated takes
     python benchmarks/bench_muscle_accuracy.py --set held-out         # once, for the report
