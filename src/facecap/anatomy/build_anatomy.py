@@ -29,8 +29,8 @@ TISSUE_DEPTH_SOURCE = (
 )
 
 
-def _boundary_nodes(T: np.ndarray) -> np.ndarray:
-    """Nodes on faces that belong to one tetrahedron only."""
+def boundary_nodes(T: np.ndarray) -> np.ndarray:
+    """Nodes of a tetrahedral mesh ``T`` (m, 4) on its surface: on faces that belong to one tetrahedron only."""
     faces = np.concatenate([T[:, [1, 2, 3]], T[:, [0, 3, 2]], T[:, [0, 1, 3]], T[:, [0, 2, 1]]])
     key = np.sort(faces, axis=1)
     _, inv, cnt = np.unique(key, axis=0, return_inverse=True, return_counts=True)
@@ -99,7 +99,7 @@ def build_anatomy(scan_mesh: Mesh, landmarks: Any = None, n_tets: int = 100_000,
         X, T = mesh.X, mesh.T
         t = stage("tetrahedra", t)
 
-        boundary = _boundary_nodes(T)
+        boundary = boundary_nodes(T)
         parts = np.unique(shell.part)
         dist = np.full((boundary.size, parts.max() + 1), np.inf)
         for p in parts:

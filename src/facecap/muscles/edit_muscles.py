@@ -29,6 +29,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation, Slerp
 
+from ..anatomy.build_anatomy import boundary_nodes
 from ..errors import FileFormatError, InputError
 from ..typing import FloatArray, IntArray
 from .jaw_constraints import JawConstraints
@@ -184,14 +185,6 @@ def interpolate_controls(start: MuscleControls, end: MuscleControls, jaw: JawCon
     return [MuscleControls(a, c, jaw.transform(*p)) for a, c, p in zip(activations, cranium, poses)]
 
 
-def _boundary_nodes(T: IntArray) -> IntArray:
-    """Nodes on faces that belong to one tetrahedron only."""
-    faces = np.concatenate([T[:, [1, 2, 3]], T[:, [0, 3, 2]], T[:, [0, 1, 3]], T[:, [0, 2, 1]]])
-    key = np.sort(faces, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    return np.unique(faces[counts[inverse.reshape(-1)] == 1])
-
-
 class MuscleEditor:
     """Quasistatic faces of edited controls: set-up once, one :meth:`solve` per frame.
 
@@ -243,7 +236,7 @@ class MuscleEditor:
         if not (np.isfinite(self.initial_stiffness) and self.initial_stiffness > 0):
             raise InputError(f"stiffness: expected a positive value, mN/mm, got {stiffness!r}")
         held = np.concatenate([self.model.cranium_set, self.model.mandible_set, np.asarray(anatomy.rim_nodes)])
-        self.skin_nodes: IntArray = np.setdiff1d(_boundary_nodes(np.asarray(anatomy.tets)), held).astype(np.int64)
+        self.skin_nodes: IntArray = np.setdiff1d(boundary_nodes(np.asarray(anatomy.tets)), held).astype(np.int64)
         N = self.model.flesh.n_nodes
         nodes = sp.csr_matrix((np.ones(self.skin_nodes.size), (np.arange(self.skin_nodes.size), self.skin_nodes)),
                               shape=(self.skin_nodes.size, N))
