@@ -7,12 +7,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 from matplotlib import image as mpimg
 
 from facecap.anatomy import (
     MUSCLE_NAMES,
     FaceAnatomy,
+    JAW_GAP_MM,
     build_anatomy,
+    in_jaw_gap,
     is_mandible,
     jaw_joint,
     anatomy_landmarks,
@@ -59,8 +62,6 @@ def test_bone_nodes_are_split_by_the_jaw_cut(anatomy) -> None:
     joint = jaw_joint(anatomy_landmarks(load_ict_sample().mesh))
     assert is_mandible(anatomy.nodes[mand], joint).all() and not is_mandible(anatomy.nodes[cran], joint).any()
     # Dirichlet nodes are on the bone surface: close to it, and at least the minimum tissue from the skin
-    from scipy.spatial import cKDTree
-
     d_bone, _ = cKDTree(anatomy.bone_vertices).query(anatomy.nodes[np.concatenate([cran, mand])])
     assert np.median(d_bone) < 3.0
     d_skin, _ = cKDTree(anatomy.scan_vertices[anatomy.skin_meshed]).query(anatomy.nodes[cran])
@@ -71,6 +72,32 @@ def test_bone_nodes_are_split_by_the_jaw_cut(anatomy) -> None:
     assert near_chin >= cran.size
     _, near_brow = cKDTree(anatomy.nodes[np.concatenate([cran, mand])]).query(p["glabella"] - [0, 0, 5.25])
     assert near_brow < cran.size
+
+
+def test_the_bone_along_the_jaw_cut_holds_to_neither_jaw(anatomy) -> None:
+    # Flesh glued to the cranium on one side of the cut and to the mandible a few mm away on the
+    # other was crushed when the jaw moved (inverted elements at the mouth's corners on a 22k model):
+    # no bone node within JAW_GAP_MM of the cut, measured here independently of in_jaw_gap
+    joint = jaw_joint(anatomy_landmarks(load_ict_sample().mesh))
+    bone = np.concatenate([anatomy.cranium_nodes, anatomy.mandible_nodes])
+    local = (anatomy.nodes - joint.origin) @ joint.frame.T
+    z, y = local[:, 2], local[:, 1]
+    # the cut's occlusal segment, stomion backwards to the ramus front: vertical offset from it
+    front = (z >= joint.cut_z[1]) & (z <= joint.cut_z[2])
+    height = np.abs(y - np.interp(z, joint.cut_z, joint.cut_y))
+    slope = np.diff(joint.cut_y[1:]) / np.diff(joint.cut_z[1:])
+    across = height / np.sqrt(1.0 + slope[0] ** 2)  # distance to the straight segment
+    assert np.all(across[bone][front[bone]] >= JAW_GAP_MM - 1e-9)
+    # the band is real: boundary nodes on the bone there exist and are free (not rim, not bone)
+    from facecap.anatomy.build_anatomy import boundary_nodes
+
+    surface = boundary_nodes(anatomy.tets)
+    in_band = surface[front[surface] & (across[surface] < JAW_GAP_MM)]
+    d_bone, _ = cKDTree(anatomy.bone_vertices).query(anatomy.nodes[in_band])
+    freed = in_band[d_bone < 1.0]
+    assert freed.size >= 5
+    assert np.intersect1d(freed, np.concatenate([bone, anatomy.rim_nodes])).size == 0
+    assert in_jaw_gap(anatomy.nodes[freed], joint).all() and not in_jaw_gap(anatomy.nodes[bone], joint).any()
 
 
 def test_condyles_are_in_front_of_the_ears(anatomy) -> None:

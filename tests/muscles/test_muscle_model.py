@@ -121,3 +121,26 @@ def test_a_repeated_solve_is_not_repeated(model) -> None:
     assert again.iterations == 0 and again.positions is first.positions
     moved = model.equilibrium(a, model.jaw.transform(0.2), x0=first.positions)
     assert moved.iterations > 0
+
+
+def test_a_moving_jaw_inverts_no_tetrahedron() -> None:
+    # A finer model than the shared one: at about 8.5k tetrahedra, before the band along the jaw cut
+    # was freed (anatomy.JAW_GAP_MM), a 20 degree opening and an opening with both condyles sliding
+    # each inverted an element at the mouth's corner with no muscle active (measured: smallest volume
+    # ratio -0.12 and -0.01); the coarse shared model does not show it
+    from facecap.anatomy import build_anatomy, tet_volumes
+    from facecap.synth import load_ict_sample
+
+    anatomy = build_anatomy(load_ict_sample().mesh, n_tets=6000, progress=False)
+    model = MuscleModel(anatomy)
+    rest = tet_volumes(anatomy.nodes, anatomy.tets)
+    rng = np.random.default_rng(5)
+    for opening_deg, slide_left, slide_right, active in ((20, 0, 0, False), (18.1, 3.3, 6.6, False), (0, 0, 12, False),
+                                                         (15, 5, 2, True)):
+        a = (rng.uniform(0, 1, model.n_muscles) * (rng.uniform(size=model.n_muscles) < 0.4) if active
+             else np.zeros(model.n_muscles))
+        result = model.equilibrium(a, model.jaw.transform(np.radians(opening_deg), slide_left, slide_right))
+        assert result.converged
+        ratio = tet_volumes(result.positions, anatomy.tets) / rest
+        assert ratio.min() > 0.1, (opening_deg, slide_left, slide_right, ratio.min())
+        assert result.inverted_tets == 0

@@ -10,7 +10,8 @@ In the order :func:`build_anatomy` uses them:
   inside the skin and the closed skin-bone-wall surface of the soft tissue.
 - :func:`tetrahedralize_shell` (``tetrahedralize_shell.py``): one fTetWild
   tetrahedral mesh, positively oriented, and :func:`tet_quality`.
-- :func:`jaw_joint` (``jaw_joint.py``): the condyles and the cranium-mandible cut.
+- :func:`jaw_joint` (``jaw_joint.py``): the condyles, the cranium-mandible cut and
+  the band along it that holds to neither bone (:func:`in_jaw_gap`).
 - :func:`embed_points` (``skin_embedding.py``): each scan vertex as a
   tetrahedron and four barycentric weights.
 - :func:`facial_muscles` (``facial_muscles.py``): 36 muscles as
@@ -35,7 +36,7 @@ from .anatomy_landmarks import (
 from .build_anatomy import build_anatomy
 from .face_anatomy import ANATOMY_FORMAT, FaceAnatomy, load_anatomy
 from .facial_muscles import MUSCLE_NAMES, MuscleFields, MuscleSpec, facial_muscles, muscle_specs
-from .jaw_joint import JawJoint, is_mandible, jaw_joint
+from .jaw_joint import JAW_GAP_MM, JawJoint, in_jaw_gap, is_mandible, jaw_joint
 from .render_anatomy_layout import render_anatomy_layout
 from .skin_embedding import SkinEmbedding, embed_points, embedding_matrix
 from .soft_tissue_shell import PART_BONE, PART_RIM, PART_SKIN, PART_WALL, SoftTissueShell, soft_tissue_shell
@@ -50,6 +51,7 @@ __all__ = [
     "JawJoint",
     "MIN_TISSUE_MM",
     "MUSCLE_NAMES",
+    "JAW_GAP_MM",
     "MuscleFields",
     "MuscleSpec",
     "PART_BONE",
@@ -67,6 +69,7 @@ __all__ = [
     "embedding_matrix",
     "face_frame",
     "facial_muscles",
+    "in_jaw_gap",
     "is_mandible",
     "jaw_joint",
     "landmarks_from_ibug68",

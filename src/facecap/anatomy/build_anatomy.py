@@ -16,7 +16,7 @@ from ..structures import Mesh
 from .anatomy_landmarks import AnatomyLandmarks, anatomy_landmarks
 from .face_anatomy import FaceAnatomy
 from .facial_muscles import facial_muscles
-from .jaw_joint import is_mandible, jaw_joint
+from .jaw_joint import in_jaw_gap, is_mandible, jaw_joint
 from .skin_embedding import embed_points
 from .soft_tissue_shell import PART_BONE, PART_RIM, soft_tissue_shell
 from .tetrahedralize_shell import ENVELOPE_MM, tet_quality, tetrahedralize_shell
@@ -108,6 +108,8 @@ def build_anatomy(scan_mesh: Mesh, landmarks: Any = None, n_tets: int = 100_000,
         nearest = np.argmin(dist, axis=1)
         bone_nodes = boundary[nearest == PART_BONE]
         joint = jaw_joint(lm)
+        # the bone along the cut holds to neither jaw (jaw_joint.JAW_GAP_MM)
+        bone_nodes = bone_nodes[~in_jaw_gap(X[bone_nodes], joint)]
         jaw = is_mandible(X[bone_nodes], joint)
         t = stage("bone nodes", t)
 

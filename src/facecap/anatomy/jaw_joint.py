@@ -9,7 +9,10 @@ Both come from the skin landmarks in the face frame (x left, y up, z forward):
 - the mandible is what lies below a cut in the sagittal (z, y) plane: the
   occlusal plane from the stomion (mouth slit), rising 8.5 degrees backwards
   to the front of the ramus (10 mm in front of the gonion), then straight up
-  the ramus to 5 mm below the condyle (the condylar neck), and level behind it.
+  the ramus to 5 mm below the condyle (the condylar neck), and level behind it;
+- the bone within 6 mm of that cut is neither: the crowns of the teeth and the gap
+  between them, over which the lips and cheeks lie unattached, and the sigmoid
+  notch and joint between the ramus and the skull.
 """
 
 from __future__ import annotations
@@ -21,7 +24,7 @@ import numpy as np
 from ..typing import FloatArray
 from .anatomy_landmarks import AnatomyLandmarks
 
-__all__ = ["JawJoint", "jaw_joint", "is_mandible"]
+__all__ = ["JawJoint", "jaw_joint", "is_mandible", "in_jaw_gap", "JAW_GAP_MM"]
 
 CONDYLE_DEPTH_MM = 18.0
 """Condyle centre medial of the skin contour in front of the ear."""
@@ -29,6 +32,20 @@ OCCLUSAL_TILT_DEG = 8.5
 """Rise of the occlusal plane backwards from the stomion, relative to the face frame's horizontal."""
 RAMUS_FRONT_AHEAD_OF_GONION_MM = 10.0
 CONDYLAR_NECK_MM = 5.0
+JAW_GAP_MM = 6.0
+"""Half-width of the band along the cranium-mandible cut whose bone nodes hold to neither bone.
+
+The model's bone is one membrane under the skin, cut in two, so without the band the flesh was
+glued to the cranium just on one side of the cut and to the mandible just on the other, a few
+millimetres apart. Opening the jaw or sliding a condyle then crushed the tetrahedra between the
+two: on a 22k-tetrahedron model of the ICT face one to three inverted, with no muscle active,
+at the corners of the mouth (11.5-25 degrees of opening, a 6-12 mm condyle slide) and beside
+the condylar neck (a 10-12 mm slide). In a real face nothing there is bound to both: the lips
+and cheeks lie over the teeth's crowns (8-10 mm high) and the gap between the dental arches,
+attached higher and lower at the vestibule's fold, and between the ramus and the skull are the
+sigmoid notch and the joint, bridged by muscle. With a 6 mm band (12 mm of freed bone across
+the cut) none of those poses inverts an element.
+"""
 
 
 class JawJoint(NamedTuple):
@@ -100,3 +117,33 @@ def is_mandible(points: Any, joint: JawJoint) -> np.ndarray:
     """
     L = (np.asarray(points, dtype=np.float64) - joint.origin) @ joint.frame.T
     return L[:, 1] < np.interp(L[:, 2], joint.cut_z, joint.cut_y)
+
+
+def in_jaw_gap(points: Any, joint: JawJoint, half_width_mm: float = JAW_GAP_MM) -> np.ndarray:
+    """Which points lie within ``half_width_mm`` of the cranium-mandible cut (in the sagittal plane).
+
+    The cut's level continuations before the condyles and beyond the stomion count as part of
+    it; see :data:`JAW_GAP_MM` for why the bone there is left free.
+
+    Parameters
+    ----------
+    points : (k, 3) float array, mm
+        Scan coordinates.
+    joint : JawJoint
+    half_width_mm : float, default :data:`JAW_GAP_MM`
+
+    Returns
+    -------
+    (k,) bool array
+    """
+    L = (np.asarray(points, dtype=np.float64) - joint.origin) @ joint.frame.T
+    q = L[:, [2, 1]]  # (z, y)
+    far = 1e4  # the level continuations, as long segments
+    corners = np.column_stack([np.r_[joint.cut_z[0] - far, joint.cut_z, joint.cut_z[-1] + far],
+                               np.r_[joint.cut_y[0], joint.cut_y, joint.cut_y[-1]]])
+    distance = np.full(q.shape[0], np.inf)
+    for a, b in zip(corners[:-1], corners[1:]):
+        ab = b - a
+        t = np.clip((q - a) @ ab / float(ab @ ab), 0.0, 1.0)
+        distance = np.minimum(distance, np.linalg.norm(q - (a + t[:, None] * ab), axis=1))
+    return distance < half_width_mm
