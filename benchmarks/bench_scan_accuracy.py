@@ -21,6 +21,9 @@ Stage by stage against the truth, besides the final numbers:
 - each basis at its own frame, mean over all template vertices: in the world (moved by the
   blend's head motion of that frame), in the stabilised frame, and after the best rigid
   alignment to the truth (what the registration got wrong beyond a pose);
+- each basis's error split across the skin (along the truth's normals, mean absolute) and along it
+  (the tangential part, mean length), beside ``animate``'s at the same frames: a surface matched to
+  its scan has little error across, so what is left along the skin is correspondence;
 - what register-scans reports per basis without truth (marker residual after the fit, how far
   the fit moved the surface).
 
@@ -40,6 +43,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import igl
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -51,7 +55,7 @@ from facecap.cli import main  # noqa: E402
 from facecap.io.conditioned_take import read_conditioned_take  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402
 from facecap.markers import rigid_fit  # noqa: E402
-from facecap.report.evaluate_result import evaluate_result  # noqa: E402
+from facecap.report.evaluate_result import evaluate_result, result_and_truth_mm  # noqa: E402
 from facecap.synth import SkinRegions, load_ict_sample, write_planned_scans, write_synthetic_case  # noqa: E402
 
 
@@ -64,8 +68,8 @@ def _stabilisation_error_deg(synthetic, conditioned) -> np.ndarray:
     return np.degrees(Rotation.from_matrix(conditioned.head_rotations @ np.swapaxes(true, 1, 2)).magnitude())
 
 
-def _basis_errors(synthetic, bases_dir: Path, blend_dir: Path) -> dict:
-    """Each basis against the truth at its own frame (mean over vertices, mm)."""
+def _basis_errors(synthetic, bases_dir: Path, blend_dir: Path, truth_path: Path, animate_dir: Path) -> dict:
+    """Each basis against the truth at its own frame (mean over vertices, mm), and its split across and along the skin."""
     folder = read_registered_scans(bases_dir)
     frames = folder["plan"]["frames"]
     A = folder["output_from_mocap"]
@@ -83,8 +87,21 @@ def _basis_errors(synthetic, bases_dir: Path, blend_dir: Path) -> dict:
     else:
         world = stabilized
     scans = folder["report"]["scans"]
+    # across the skin or along it: each basis's error, and animate's at the same frames (the stabilised
+    # face against the expression-only truth), split along the truth's vertex normals
+    faces = folder["template"].faces
+    animate, _, _ = result_and_truth_mm(truth_path, animate_dir, frame="stabilized")
+    split = {"basis": [], "animate": []}
+    for i, f in enumerate(frames):
+        normals = igl.per_vertex_normals(truth[i], faces)
+        for name, x in (("basis", bases[i]), ("animate", animate[f].astype(np.float64))):
+            e = x - truth[i]
+            across = np.einsum("ij,ij->i", e, normals)
+            along = np.linalg.norm(e - across[:, None] * normals, axis=1)
+            split[name].append((float(np.abs(across).mean()), float(along.mean())))
     return {
         "world_mm": world.tolist(), "stabilized_mm": stabilized.tolist(), "rigid_removed_mm": rigid_removed.tolist(),
+        "across_along_mm": split["basis"], "animate_across_along_mm": split["animate"],
         "reported_quality": [s.get("quality", {}) for s in scans],
     }
 
@@ -139,7 +156,7 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
         "stabilization_deg": {"median": float(np.median(stab_deg)), "p95": float(np.percentile(stab_deg, 95)),
                               "max": float(stab_deg.max())},
         "blend_pose_correction": blend_report.get("head_pose_correction"),
-        "bases": _basis_errors(synthetic, root / "bases", root / "blend"),
+        "bases": _basis_errors(synthetic, root / "bases", root / "blend", files.truth, root / "animate_auto"),
         "blend_regions_mm": {name: r.mean_mm for name, r in blend.regions.items()},
         "plan_s": plan_s, "register_s": register_s,
     }
@@ -174,14 +191,17 @@ def main_bench() -> None:
         rows.append(row)
         print("RESULT", json.dumps(row), flush=True)
     print("| case | held out | scans | stabilisation deg (median / max) | animate auto / off | blend | ratio (bar 0.5) "
-          "| bases world mean / worst | bases rigid-removed worst |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| bases world mean / worst | bases rigid-removed worst | bases across / along | animate across / along |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         b = r["bases"]
         print(f"| {r['case']} | {r['held_out']} | {r['scans']} | {r['stabilization_deg']['median']:.2f} / "
               f"{r['stabilization_deg']['max']:.2f} | {r['animate_auto_mm']:.3f} / {r['animate_off_mm']:.3f} mm "
               f"| {r['blend_mm']:.3f} mm | {r['ratio']:.2f} | {np.mean(b['world_mm']):.3f} / {max(b['world_mm']):.3f} mm "
-              f"| {max(b['rigid_removed_mm']):.3f} mm |")
+              f"| {max(b['rigid_removed_mm']):.3f} mm "
+              f"| {np.mean([x[0] for x in b['across_along_mm']]):.3f} / {np.mean([x[1] for x in b['across_along_mm']]):.3f} "
+              f"| {np.mean([x[0] for x in b['animate_across_along_mm']]):.3f} / "
+              f"{np.mean([x[1] for x in b['animate_across_along_mm']]):.3f} |")
 
 
 if __name__ == "__main__":
