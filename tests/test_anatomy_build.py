@@ -98,6 +98,7 @@ def test_the_bone_along_the_jaw_cut_holds_to_neither_jaw(anatomy) -> None:
     assert freed.size >= 5
     assert np.intersect1d(freed, np.concatenate([bone, anatomy.rim_nodes])).size == 0
     assert in_jaw_gap(anatomy.nodes[freed], joint).all() and not in_jaw_gap(anatomy.nodes[bone], joint).any()
+    assert anatomy.provenance["jaw_gap_mm"] == JAW_GAP_MM
 
 
 def test_condyles_are_in_front_of_the_ears(anatomy) -> None:

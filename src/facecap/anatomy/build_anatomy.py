@@ -16,7 +16,7 @@ from ..structures import Mesh
 from .anatomy_landmarks import AnatomyLandmarks, anatomy_landmarks
 from .face_anatomy import FaceAnatomy
 from .facial_muscles import facial_muscles
-from .jaw_joint import in_jaw_gap, is_mandible, jaw_joint
+from .jaw_joint import JAW_GAP_MM, in_jaw_gap, is_mandible, jaw_joint
 from .skin_embedding import embed_points
 from .soft_tissue_shell import PART_BONE, PART_RIM, soft_tissue_shell
 from .tetrahedralize_shell import ENVELOPE_MM, tet_quality, tetrahedralize_shell
@@ -138,6 +138,7 @@ def build_anatomy(scan_mesh: Mesh, landmarks: Any = None, n_tets: int = 100_000,
         "meshed_surface_volume_mm3": float(_closed_volume(mesh.surface_V, mesh.surface_F)),
         "shell_volume_mm3": float(_closed_volume(shell.V, shell.F)),
         "tissue_depths": TISSUE_DEPTH_SOURCE,
+        "jaw_gap_mm": JAW_GAP_MM,  # models built before the band have none: their flesh is glued across the cut
         "landmarks": _landmark_source(landmarks),
         "quality": quality._asdict(),
         "seconds": seconds,

@@ -115,7 +115,7 @@ def is_mandible(points: Any, joint: JawJoint) -> np.ndarray:
     -------
     (k,) bool array
     """
-    L = (np.asarray(points, dtype=np.float64) - joint.origin) @ joint.frame.T
+    L = _face_local(points, joint)
     return L[:, 1] < np.interp(L[:, 2], joint.cut_z, joint.cut_y)
 
 
@@ -136,8 +136,7 @@ def in_jaw_gap(points: Any, joint: JawJoint, half_width_mm: float = JAW_GAP_MM) 
     -------
     (k,) bool array
     """
-    L = (np.asarray(points, dtype=np.float64) - joint.origin) @ joint.frame.T
-    q = L[:, [2, 1]]  # (z, y)
+    q = _face_local(points, joint)[:, [2, 1]]  # (z, y)
     far = 1e4  # the level continuations, as long segments
     corners = np.column_stack([np.r_[joint.cut_z[0] - far, joint.cut_z, joint.cut_z[-1] + far],
                                np.r_[joint.cut_y[0], joint.cut_y, joint.cut_y[-1]]])
@@ -147,3 +146,8 @@ def in_jaw_gap(points: Any, joint: JawJoint, half_width_mm: float = JAW_GAP_MM) 
         t = np.clip((q - a) @ ab / float(ab @ ab), 0.0, 1.0)
         distance = np.minimum(distance, np.linalg.norm(q - (a + t[:, None] * ab), axis=1))
     return distance < half_width_mm
+
+
+def _face_local(points: Any, joint: JawJoint) -> FloatArray:
+    """Scan coordinates ``(k, 3)`` in the face frame of ``joint`` (x left, y up, z forward)."""
+    return (np.asarray(points, dtype=np.float64) - joint.origin) @ joint.frame.T
