@@ -1,4 +1,5 @@
-"""Shared fixtures: a small analytic capture case independent of the ICT generator."""
+"""Shared fixtures: a small analytic capture case independent of the ICT generator, and the small anatomical
+model of the bundled ICT face that the anatomy, muscle and muscle CLI tests share (built once a session)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,8 @@ from pathlib import Path
 import pytest
 
 from analytic_case import CaptureCase
+
+SMALL_MODEL_TETS = 2000  # fTetWild lands at about 3,900 tetrahedra, 1,300 nodes, 36 muscles
 
 
 @pytest.fixture
@@ -17,3 +20,12 @@ def capture_case(tmp_path: Path) -> CaptureCase:
 @pytest.fixture
 def capture_case_head_motion(tmp_path: Path) -> CaptureCase:
     return CaptureCase(tmp_path, head_motion=True)
+
+
+@pytest.fixture(scope="session")
+def anatomy():
+    """The bundled ICT face's anatomy at ``SMALL_MODEL_TETS`` (about 8 s to build; tests must not change it)."""
+    from facecap.anatomy import build_anatomy
+    from facecap.synth import load_ict_sample
+
+    return build_anatomy(load_ict_sample().mesh, n_tets=SMALL_MODEL_TETS, progress=False)

@@ -12,7 +12,6 @@ from matplotlib import image as mpimg
 
 from facecap.anatomy import (
     MUSCLE_NAMES,
-    FaceAnatomy,
     JAW_GAP_MM,
     build_anatomy,
     in_jaw_gap,
@@ -25,13 +24,6 @@ from facecap.anatomy import (
 )
 from facecap.errors import FileFormatError, InputError
 from facecap.synth import load_ict_sample
-
-TEST_TETS = 2000
-
-
-@pytest.fixture(scope="module")
-def anatomy() -> FaceAnatomy:
-    return build_anatomy(load_ict_sample().mesh, n_tets=TEST_TETS, progress=False)
 
 
 def test_skin_embedding_reproduces_every_scan_vertex(anatomy) -> None:
@@ -187,3 +179,27 @@ def test_bad_input_is_refused() -> None:
         build_anatomy(load_ict_sample().mesh, n_tets=5, progress=False)
     with pytest.raises(InputError, match="Mesh"):
         build_anatomy(np.zeros((3, 3)), progress=False)
+
+
+def test_the_model_keeps_the_scans_polygons_and_uvs_for_the_exports(anatomy, tmp_path) -> None:
+    scan = load_ict_sample().mesh
+    mesh = anatomy.scan_mesh()
+    np.testing.assert_array_equal(mesh.polygon_sizes, scan.polygon_sizes)
+    np.testing.assert_array_equal(mesh.polygon_indices, scan.polygon_indices)
+    np.testing.assert_array_equal(mesh.uvs, scan.uvs)
+    np.testing.assert_array_equal(mesh.uv_indices, scan.uv_indices)
+    np.testing.assert_array_equal(mesh.vertices, scan.vertices)
+    loaded = load_anatomy(anatomy.save(tmp_path / "model")).scan_mesh()
+    np.testing.assert_array_equal(loaded.polygon_indices, scan.polygon_indices)
+    np.testing.assert_array_equal(loaded.uv_indices, scan.uv_indices)
+    # a model saved before the polygons and UVs were kept still loads: triangles, no UVs
+    with np.load(tmp_path / "model" / "anatomy.npz") as data:
+        older = {name: data[name] for name in data.files if not name.startswith(("scan_polygon", "scan_uv"))}
+    np.savez(tmp_path / "model" / "anatomy.npz", **older)
+    old = load_anatomy(tmp_path / "model").scan_mesh()
+    assert old.uvs is None and old.polygon_sizes is None and np.array_equal(old.faces, anatomy.scan_faces)
+    # polygons whose corners do not add up are a broken file, named
+    np.savez(tmp_path / "model" / "anatomy.npz", **older, scan_polygon_sizes=scan.polygon_sizes,
+             scan_polygon_indices=scan.polygon_indices[:-1])
+    with pytest.raises(FileFormatError, match="anatomy.npz"):
+        load_anatomy(tmp_path / "model")

@@ -135,6 +135,8 @@ def test_synth_writes_a_case_and_its_footage(tmp_path, capsys):
 
     from facecap.cameras import open_footage, read_camera_file
     from facecap.io import read_markers, read_mesh
+    from facecap.synth.ict_sample import load_ict_sample
+    from facecap.synth.wrinkle_scan import subdivide_scan
 
     assert main(["-q", "synth", "--out", str(tmp_path / "a"), "--frames", "12", "--seed", "2"]) == 0
     assert main(["-q", "synth", "--out", str(tmp_path / "b"), "--frames", "12", "--seed", "2", "--identity", "4"]) == 0
@@ -145,7 +147,10 @@ def test_synth_writes_a_case_and_its_footage(tmp_path, capsys):
     assert a.n_vertices == b.n_vertices and np.abs(a.vertices - b.vertices).max() > 1.0  # another actor
     assert len(_json.loads((tmp_path / "a" / "map.json").read_text())) == take.n_markers - 4  # less the head band
 
-    assert main(["-q", "synth", "--out", str(tmp_path / "f"), "--frames", "5", "--footage"]) == 0
+    # one subdivision (37k vertices) keeps the test short; the default's two are write_footage_case's tests
+    assert main(["-q", "synth", "--out", str(tmp_path / "f"), "--frames", "5", "--footage", "--levels", "1"]) == 0
+    ict = load_ict_sample().mesh
+    assert read_mesh(tmp_path / "f" / "scan.obj").n_vertices == subdivide_scan(ict, levels=1).mesh.n_vertices
     setup = read_camera_file(tmp_path / "f" / "cameras.json")
     assert len(setup.cameras) == 2 and setup.video_rate_hz == 12.5
     for camera in setup.cameras:
@@ -156,3 +161,7 @@ def test_synth_writes_a_case_and_its_footage(tmp_path, capsys):
 
     assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "1"]) == 2
     assert "--frames" in capsys.readouterr().err and not (tmp_path / "bad").exists()
+    assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "5", "--levels", "3"]) == 2
+    assert "--levels" in capsys.readouterr().err and not (tmp_path / "bad").exists()
+    assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "5", "--footage", "--levels", "-1"]) == 2
+    assert "levels" in capsys.readouterr().err and not (tmp_path / "bad").exists()

@@ -17,14 +17,12 @@ import numpy as np
 import pytest
 from muscle_cases import ramping_controls
 
-from facecap.anatomy import build_anatomy, load_anatomy
+from facecap.anatomy import load_anatomy
 from facecap.cli import main
 from facecap.io import read_result, write_markers
 from facecap.muscles import JawConstraints, MuscleControls, MuscleModel, forward_markers, marker_embedding
 from facecap.structures import MarkerSequence
-from facecap.synth import load_ict_sample
 
-TEST_TETS = 2000
 N_MARKERS = 100
 N_FRAMES = 4
 
@@ -40,9 +38,8 @@ def _rotation_y(angle: float) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def case(tmp_path_factory) -> Case:
+def case(anatomy, tmp_path_factory) -> Case:
     root = tmp_path_factory.mktemp("edit_case")
-    anatomy = build_anatomy(load_ict_sample().mesh, n_tets=TEST_TETS, progress=False)
     anatomy.save(root / "model")
     model = MuscleModel(anatomy)
     usable = np.flatnonzero(anatomy.skin_meshed & model.skin_follows)

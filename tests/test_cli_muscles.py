@@ -15,14 +15,12 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
-from facecap.anatomy import build_anatomy
 from facecap.cli import main
 from facecap.io import read_markers, read_result, write_markers
 from facecap.muscles import MuscleControls, MuscleModel, forward_markers, marker_embedding
 from facecap.structures import MarkerSequence
 from facecap.synth import choose_marker_vertices, load_ict_sample
 
-TEST_TETS = 2000
 N_MARKERS = 120
 N_FRAMES = 6
 NOISE_MM = 0.2
@@ -41,9 +39,8 @@ class Case(NamedTuple):
 
 
 @pytest.fixture(scope="module")
-def case(tmp_path_factory) -> Case:
+def case(anatomy, tmp_path_factory) -> Case:
     root = tmp_path_factory.mktemp("muscle_case")
-    anatomy = build_anatomy(load_ict_sample().mesh, n_tets=TEST_TETS, progress=False)
     anatomy.save(root / "model")
     model = MuscleModel(anatomy)
     # the layout of tests/muscles/conftest.py: denser where the muscles and the jaw move the skin
@@ -178,7 +175,16 @@ def test_the_local_cluster_gives_the_synchronous_result(case, solved, tmp_path) 
     assert report["runner"]["computed"] == [0, 1]
     assert np.abs(read_result(local).frames() - read_result(out).frames()).max() < 1e-4
     assert np.abs(_activations(local)[2] - _activations(out)[2]).max() < 1e-5
-    assert (local / "performance.usdc").is_file()
+    # the face in the USD is the scan's own: the ICT face's quads and UVs, not the solver's triangles
+    from pxr import Usd, UsdGeom
+
+    scan = load_ict_sample().mesh
+    stage = Usd.Stage.Open(str(local / "performance.usdc"))  # held: its prims die with it
+    face = UsdGeom.Mesh(stage.GetPrimAtPath("/Head/Face"))
+    sizes, _ = scan.export_polygons()
+    assert list(face.GetFaceVertexCountsAttr().Get()) == list(sizes) and max(sizes) == 4
+    st = UsdGeom.PrimvarsAPI(face.GetPrim()).GetPrimvar("st")
+    np.testing.assert_allclose(np.array(st.Get()), scan.uvs, atol=1e-6)
 
 
 @pytest.mark.parametrize("problem", ["no model", "not a model", "map names markers not in the take",

@@ -38,7 +38,6 @@ def test_demo_writes_the_animation_report_and_pictures(tmp_path, capsys):
                  "muscles_layout.png", "muscles_activations.png", "muscles_frame_comparison.png"):
         image = imread(out / "pictures" / name)
         assert image.ndim == 3 and image.std() > 0.01  # a picture, not a blank canvas
-    # a second run replaces the first; no staging folders are left behind
-    assert main(["--quiet", "demo", "--out", str(out), "--frames", "60"]) == 0
-    assert np.load(out / "animation" / "vertices.npy", mmap_mode="r").shape[0] == 60
+    # no staging folder is left behind (a second run replacing this one is atomic_folder's, tested in
+    # tests/io/test_atomic.py: running the whole demo twice here cost two minutes)
     assert [p.name for p in tmp_path.iterdir()] == ["facecap-demo"]

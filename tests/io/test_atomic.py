@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from facecap.errors import InputError
-from facecap.io._atomic import atomic_path, atomic_write_text
+from facecap.io._atomic import atomic_folder, atomic_path, atomic_write_text
 
 
 def _leftovers(folder):
@@ -95,3 +95,55 @@ def test_atomic_write_text_failure_leaves_nothing(tmp_path):
     with pytest.raises(UnicodeEncodeError):
         atomic_write_text(tmp_path / "t.txt", "✓", encoding="ascii")
     assert list(tmp_path.iterdir()) == []
+
+
+def _hidden(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+def test_atomic_folder_replaces_an_earlier_result_and_leaves_no_staging(tmp_path):
+    final = tmp_path / "result"
+    for payload in ("first", "second"):
+        with atomic_folder(final, marker_file="done.json") as stage:
+            assert stage.parent == tmp_path and stage.name.startswith(".result.partial-")
+            (stage / "data.txt").write_text(payload)
+            (stage / "done.json").write_text("{}")
+        assert (final / "data.txt").read_text() == payload
+        assert sorted(p.name for p in final.iterdir()) == ["data.txt", "done.json"]
+    assert [p.name for p in tmp_path.iterdir()] == ["result"]
+
+
+def test_atomic_folder_keeps_the_earlier_result_when_the_block_fails(tmp_path):
+    final = tmp_path / "result"
+    final.mkdir()
+    (final / "done.json").write_text("old")
+    with pytest.raises(RuntimeError, match="boom"):
+        with atomic_folder(final, marker_file="done.json") as stage:
+            (stage / "done.json").write_text("new, unfinished")
+            raise RuntimeError("boom")
+    assert (final / "done.json").read_text() == "old"
+    assert _hidden(tmp_path) == []
+
+
+def test_atomic_folder_without_its_marker_is_not_finished(tmp_path):
+    final = tmp_path / "result"
+    with pytest.raises(InputError, match="done.json missing"):
+        with atomic_folder(final, marker_file="done.json") as stage:
+            (stage / "data.txt").write_text("half")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_atomic_folder_refuses_a_foreign_folder_or_a_file(tmp_path):
+    foreign = tmp_path / "photos"
+    foreign.mkdir()
+    (foreign / "holiday.jpg").write_bytes(b"jpeg")
+    with pytest.raises(InputError, match="holds no done.json") as info:
+        with atomic_folder(foreign, marker_file="done.json"):
+            pass  # pragma: no cover
+    assert info.value.path == str(foreign)
+    assert (foreign / "holiday.jpg").read_bytes() == b"jpeg"
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(InputError, match="not a folder"):
+        with atomic_folder(tmp_path / "file", marker_file="done.json"):
+            pass  # pragma: no cover
+    assert _hidden(tmp_path) == []

@@ -1,4 +1,5 @@
-"""One small anatomy (the bundled ICT face at ~4k tetrahedra) and a marker layout, shared by the muscle tests."""
+"""The small model (``anatomy`` of tests/conftest.py: the bundled ICT face at ~4k tetrahedra) and a marker layout,
+shared by the muscle tests."""
 
 from __future__ import annotations
 
@@ -7,22 +8,16 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
-from facecap.anatomy import FaceAnatomy, build_anatomy
+from facecap.anatomy import FaceAnatomy
 from facecap.muscles import MuscleModel
-from facecap.synth import choose_marker_vertices, load_ict_sample
+from facecap.synth import choose_marker_vertices
 
-TEST_TETS = 2000  # fTetWild lands at about 3,900 tetrahedra, 1,300 nodes
 N_MARKERS = 120
 
 
 class Layout(NamedTuple):
     marker_vertices: np.ndarray
     rest_markers: np.ndarray
-
-
-@pytest.fixture(scope="session")
-def anatomy() -> FaceAnatomy:
-    return build_anatomy(load_ict_sample().mesh, n_tets=TEST_TETS, progress=False)
 
 
 @pytest.fixture(scope="session")

@@ -17,6 +17,7 @@ import scipy.sparse as sp
 
 from ..errors import FileFormatError, InputError
 from ..io._atomic import atomic_path, atomic_write_text
+from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from .skin_embedding import SkinEmbedding, embedding_matrix
 
@@ -31,6 +32,9 @@ _ARRAYS = (
     "skin_tets", "skin_weights", "skin_inside", "skin_meshed", "condyles", "landmark_vertices",
     "landmark_points", "scan_vertices", "scan_faces", "bone_vertices", "bone_faces", "tissue_thickness_mm",
 )
+_SCAN_EXPORT_ARRAYS = ("scan_polygon_sizes", "scan_polygon_indices", "scan_uvs", "scan_uv_indices")
+"""The scan's polygons and UVs, for the exports only; optional (a triangle scan without UVs has none, and a
+model saved before they were kept loads without them)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,6 +97,10 @@ class FaceAnatomy:
         at least 1 mm).
     provenance : dict
         How the model was made (source scan, options, timings, quality, sources).
+    scan_polygon_sizes, scan_polygon_indices, scan_uvs, scan_uv_indices : arrays or None
+        The scan's polygons (quads) and UVs as :class:`~facecap.structures.Mesh` holds them, so that a
+        result written from the model (``solve-muscles``, ``edit-muscles``) exports the scan's own
+        polygons and texture coordinates (:meth:`scan_mesh`); None where the scan had none.
     """
 
     nodes: FloatArray
@@ -121,6 +129,10 @@ class FaceAnatomy:
     bone_faces: IntArray
     tissue_thickness_mm: FloatArray
     provenance: dict[str, Any] = field(default_factory=dict)
+    scan_polygon_sizes: IntArray | None = None
+    scan_polygon_indices: IntArray | None = None
+    scan_uvs: FloatArray | None = None
+    scan_uv_indices: IntArray | None = None
 
     @property
     def n_nodes(self) -> int:
@@ -152,6 +164,14 @@ class FaceAnatomy:
         corners = X[self.tets[self.skin_tets]]
         return np.einsum("ij,ijk->ik", self.skin_weights, corners)
 
+    def scan_mesh(self) -> Mesh:
+        """The scan as the output mesh of a result: its vertices at rest, triangles, and its polygons and UVs
+        where it had them (millimetres)."""
+        source = self.provenance.get("scan")
+        return Mesh(np.array(self.scan_vertices), np.array(self.scan_faces), source_unit="mm",
+                    polygon_sizes=self.scan_polygon_sizes, polygon_indices=self.scan_polygon_indices,
+                    uvs=self.scan_uvs, uv_indices=self.scan_uv_indices, source_path=str(source) if source else None)
+
     def save(self, folder: str | os.PathLike[str]) -> Path:
         """Write ``anatomy.npz`` and ``anatomy.json`` into ``folder`` (created if needed).
 
@@ -174,7 +194,8 @@ class FaceAnatomy:
         out.mkdir(parents=True, exist_ok=True)
         with atomic_path(out / "anatomy.npz") as tmp:
             with open(tmp, "wb") as handle:
-                np.savez_compressed(handle, **{name: getattr(self, name) for name in _ARRAYS})
+                optional = {name: getattr(self, name) for name in _SCAN_EXPORT_ARRAYS if getattr(self, name) is not None}
+                np.savez_compressed(handle, **{name: getattr(self, name) for name in _ARRAYS}, **optional)
         meta = {
             "format": ANATOMY_FORMAT,
             "units": "mm",
@@ -223,16 +244,22 @@ def load_anatomy(folder: str | os.PathLike[str]) -> FaceAnatomy:
     try:
         with np.load(npz_path, allow_pickle=False) as data:
             arrays = {name: data[name] for name in _ARRAYS}
+            arrays.update({name: data[name] for name in _SCAN_EXPORT_ARRAYS if name in data.files})
     except (OSError, ValueError, KeyError) as exc:
         raise FileFormatError(f"cannot read the arrays ({exc})", path=str(npz_path)) from None
     counts = meta.get("counts", {})
     if (arrays["nodes"].shape[0] != counts.get("nodes") or arrays["tets"].shape[0] != counts.get("tets")
             or len(meta.get("muscle_names", [])) != arrays["muscle_fractions"].shape[1]):
         raise FileFormatError("the arrays disagree with the counts in anatomy.json", path=str(npz_path))
-    return FaceAnatomy(
+    anatomy = FaceAnatomy(
         muscle_names=tuple(meta["muscle_names"]),
         landmark_names=tuple(meta["landmark_names"]),
         provenance=dict(meta.get("provenance", {})),
         **arrays,
     )
+    try:
+        anatomy.scan_mesh()
+    except (ValueError, InputError) as exc:
+        raise FileFormatError(f"the scan's polygons or UVs do not fit its vertices ({exc})", path=str(npz_path)) from None
+    return anatomy
 

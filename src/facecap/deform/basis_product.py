@@ -30,7 +30,6 @@ another pass over 8.6 MB per frame. Three choices keep both cheap:
 from __future__ import annotations
 
 import itertools
-import os
 from concurrent.futures import ThreadPoolExecutor
 from typing import Literal
 
@@ -38,6 +37,7 @@ import numba
 import numpy as np
 
 from .._mkl import CBLAS_FIX_OFFSET, CBLAS_NO_TRANS, CBLAS_ROW_MAJOR, mkl_blas
+from .._threads import available_cores
 from ..errors import InputError
 
 __all__ = ["BasisProduct", "Precision"]
@@ -89,13 +89,6 @@ for _kernel in (_interleave_float32, _interleave_int32):
         _kernel.enable_caching()
     except RuntimeError:
         pass
-
-
-def _available_cores() -> int:
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # not on Linux
-        return max(1, os.cpu_count() or 1)
 
 
 class BasisProduct:
@@ -181,7 +174,7 @@ class BasisProduct:
         self.precision: str = precision
         self.backend: str = "mkl" if self._mkl is not None else "numpy"
         # Without MKL, numpy's BLAS threads itself: one worker avoids cores x BLAS threads.
-        default_workers = _available_cores() if self._mkl is not None else 1
+        default_workers = available_cores() if self._mkl is not None else 1
         self.workers = max(1, int(workers)) if workers is not None else default_workers
         self.n_vertices, self.n_markers = int(n), int(K)
         self.block_vertices = rows = int(min(block_vertices, n))

@@ -456,7 +456,6 @@ def edit_muscles(
     from ..anatomy import load_anatomy
     from ..io.export_result import parse_export_formats
     from ..io.write_performance import import_writers
-    from ..structures import Mesh
     from .muscle_frame_stage import model_folder_sha256
     from .solve_muscle_take import write_muscle_result
 
@@ -602,7 +601,7 @@ def edit_muscles(
                 extra[name] = array
             elif name == "head_motion.npy":  # rigid: interpolated as the cranium is
                 extra[name] = _interpolated_motion(array[ia], array[ib], n)
-    scan = Mesh(np.array(anatomy.scan_vertices), np.array(anatomy.scan_faces), source_unit="mm")
+    scan = anatomy.scan_mesh()
     stage(f"writing {out_dir}")
     final = write_muscle_result(out_dir, scan, float(info.get("rate", 60.0)), out_frames, anatomy.muscle_names,
                                 arrays, report=report, metadata=metadata, extra_arrays=extra, exports=exports,

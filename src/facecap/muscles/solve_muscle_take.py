@@ -199,7 +199,7 @@ def solve_muscle_take(
     from ..io.read_markers import read_markers
     from ..io.write_performance import import_writers
     from ..runner import run_frames
-    from ..structures import MarkerSequence, Mesh
+    from ..structures import MarkerSequence
     from .marker_embedding import marker_embedding
     from .muscle_frame_stage import MuscleFrameStage, flag_names, model_folder_sha256
 
@@ -221,8 +221,7 @@ def solve_muscle_take(
     model_dir = Path(model_dir)
     stage(f"reading the model {model_dir}")
     anatomy = load_anatomy(model_dir)
-    scan = Mesh(np.array(anatomy.scan_vertices), np.array(anatomy.scan_faces), source_unit="mm",
-                source_path=str(anatomy.provenance.get("scan")) if anatomy.provenance.get("scan") else None)
+    scan = anatomy.scan_mesh()  # with the scan's polygons and UVs, for the exports
     take = markers if isinstance(markers, MarkerSequence) else read_markers(markers)
     corr = correspondence if isinstance(correspondence, Correspondence) else read_correspondence(correspondence, scan)
     map_name = corr.source_path
