@@ -207,3 +207,32 @@ def test_unconverged_solve_is_reported_and_bad_input_raises():
         solve_quasistatic(model, np.zeros(2), X[bottom], x0=X[:-1])
     with pytest.raises(InputError, match="solve"):
         QuasistaticSolver(model).activation_jacobian()
+
+
+@pytest.mark.parametrize("backend", ["pardiso", "scipy"])
+def test_a_singular_projected_stiffness_is_shifted_until_it_factors(backend):
+    """A positive semi-definite but singular stiffness (a free chain: a path graph's Laplacian, whose
+    constant vector is a null mode) is factored shifted by a small multiple of its mean diagonal (SuperLU
+    refuses it as is); the step solves the shifted system and descends. One that no small shift makes
+    definite is an error."""
+    import scipy.sparse as sp
+
+    from facecap.deform.factor_spd import SpdFactor
+    from facecap.errors import SolverError
+
+    X, T = box_tets((1, 1, 1), (1.0, 1.0, 1.0))
+    solver = QuasistaticSolver(FleshModel(X, T, None, None, np.arange(4)), backend=backend)
+    n = 300
+    K = sp.diags([-np.ones(n - 1), np.r_[1.0, 2.0 * np.ones(n - 2), 1.0], -np.ones(n - 1)], [-1, 0, 1]).tocsr()
+    if backend == "scipy":
+        with pytest.raises(SolverError):
+            SpdFactor(K, backend=backend)
+    r = np.random.default_rng(0).normal(size=n)
+    r -= r.mean()  # in the range of K: the shifted solve stays bounded
+    step = solver._shifted_factor(K).solve(r)
+    scale = np.abs(K.diagonal()).mean()
+    residuals = [np.abs((K + mu * scale * sp.identity(n)) @ step - r).max() for mu in (1e-10, 1e-8, 1e-6, 1e-4)]
+    assert min(residuals) < 1e-6 * np.abs(r).max()
+    assert float(r @ step) > 0  # a descent direction of the energy
+    with pytest.raises(SolverError, match="even shifted"):
+        solver._shifted_factor(-sp.identity(n, format="csr"))

@@ -301,9 +301,9 @@ class QuasistaticSolver:
         try:
             factor = SpdFactor(K, backend=self.backend)
         except SolverError:
-            if must_succeed:
-                raise
-            return None
+            if not must_succeed:
+                return None
+            factor = self._shifted_factor(K)
         finally:
             timings["factorisation"] += time.perf_counter() - t
         t = time.perf_counter()
@@ -314,6 +314,25 @@ class QuasistaticSolver:
         if not must_succeed and float(np.dot(r, step)) <= 0.0:
             return None
         return step
+
+    def _shifted_factor(self, K: sp.csr_matrix) -> SpdFactor:
+        """Factor the projected stiffness ``K + mu I`` for the smallest ``mu`` that works.
+
+        The projected stiffness is positive semi-definite by construction, but where every element
+        round a node is flattened its projection can leave that node without stiffness in some
+        direction: singular, and refused by the factorisation (PARDISO's zero pivot, seen once in a
+        few dozen jaw sweeps on fTetWild meshes, which differ from run to run). A shift of
+        ``1e-10``-``1e-4`` of the mean diagonal makes it definite and keeps the step a descent
+        direction (Levenberg); the line search then decides how far to go.
+        """
+        scale = float(np.abs(K.diagonal()).mean()) or 1.0
+        identity = sp.identity(K.shape[0], format="csr")
+        for shift in (1e-10, 1e-8, 1e-6, 1e-4):
+            try:
+                return SpdFactor((K + (shift * scale) * identity).tocsr(), backend=self.backend)
+            except SolverError:
+                continue
+        raise SolverError("the projected stiffness cannot be factored even shifted by 1e-4 of its mean diagonal")
 
     def _line_search(self, x: FloatArray, a: FloatArray, energy: float, r: FloatArray, step: FloatArray,
                      free: Any) -> tuple[FloatArray, float, ElementResponse | None]:
