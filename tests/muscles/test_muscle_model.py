@@ -133,6 +133,9 @@ def test_a_moving_jaw_inverts_no_tetrahedron() -> None:
 
     anatomy = build_anatomy(load_ict_sample().mesh, n_tets=6000, progress=False)
     model = MuscleModel(anatomy)
+    # fTetWild's mesh differs from run to run; on an occasional one a 20 degree opening from rest needs more
+    # than the default 30 Newton iterations (seen once in CI: unconverged after 30, 16 of them projected)
+    model.solver.max_iterations = 100
     rest = tet_volumes(anatomy.nodes, anatomy.tets)
     rng = np.random.default_rng(5)
     for opening_deg, slide_left, slide_right, active in ((20, 0, 0, False), (18.1, 3.3, 6.6, False), (0, 0, 12, False),
