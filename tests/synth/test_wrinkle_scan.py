@@ -1,4 +1,6 @@
-"""subdivide_scan: the original vertices first and unchanged, igl.upsample's surface, a scan fine enough for wrinkles."""
+"""subdivide_scan: the original vertices first and unchanged, igl.upsample's surface, a scan fine enough for wrinkles.
+
+refine_near: the same surface, refined only around chosen vertices, with no crack (red-green closure)."""
 
 import igl
 import numpy as np
@@ -7,7 +9,7 @@ import pytest
 from facecap.errors import InputError
 from facecap.structures import Mesh
 from facecap.synth import load_ict_sample
-from facecap.synth.wrinkle_scan import subdivide_scan
+from facecap.synth.wrinkle_scan import refine_near, subdivide_scan
 
 
 def _sorted_rows(A):
@@ -59,3 +61,60 @@ def test_bad_levels():
     with pytest.raises(InputError, match="levels"):
         subdivide_scan(tri, levels=-1)
     assert subdivide_scan(tri, levels=0).mesh.n_vertices == 3
+
+
+def _area_vector_and_area(V, F):
+    cross = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    return cross.sum(axis=0), 0.5 * np.linalg.norm(cross, axis=1).sum()
+
+
+def _boundary_length(V, F):
+    E = np.sort(np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]]), axis=1)
+    edges, count = np.unique(E, axis=0, return_counts=True)
+    once = edges[count == 1]
+    return np.linalg.norm(V[once[:, 0]] - V[once[:, 1]], axis=1).sum()
+
+
+def test_refine_near_the_forehead_keeps_the_surface_and_leaves_no_crack():
+    sample = load_ict_sample()
+    mesh = sample.mesh
+    near = sample.region_labels == sample.region_names.index("forehead")
+    fine = refine_near(mesh, near, max_edge_mm=1.0)
+    V, F, n = fine.mesh.vertices, fine.mesh.faces, fine.n_original
+    assert n == mesh.n_vertices and fine.mesh.n_vertices > 2 * n
+    np.testing.assert_array_equal(V[:n], mesh.vertices)
+    np.testing.assert_allclose(fine.upsample @ mesh.vertices, V, atol=1e-12)
+    # the same surface: area, orientation; no crack: a vertex hanging on another triangle's edge would
+    # open the edge into two boundary edges, so the boundary would grow
+    (vec, area), (vec0, area0) = _area_vector_and_area(V, F), _area_vector_and_area(mesh.vertices, mesh.faces)
+    np.testing.assert_allclose(area, area0, rtol=1e-10)
+    np.testing.assert_allclose(vec, vec0, rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(_boundary_length(V, F), _boundary_length(mesh.vertices, mesh.faces), rtol=1e-12)
+    assert igl.is_edge_manifold(F)[0] if isinstance(igl.is_edge_manifold(F), tuple) else igl.is_edge_manifold(F)
+    # fine where asked: every triangle inside the original triangles touching the forehead
+    touching = near[mesh.faces].any(axis=1)
+    centroid = V[F].mean(axis=1)
+    _, owner, _ = igl.point_mesh_squared_distance(centroid, mesh.vertices, mesh.faces)
+    inside = touching[owner]
+    longest = np.max([np.linalg.norm(V[F[:, i]] - V[F[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=0)
+    assert inside.sum() > 4 * touching.sum()
+    assert longest[inside].max() <= 1.0
+    # and untouched away from it: an original triangle sharing no vertex with the refined ones is still there
+    ring = np.zeros(n, dtype=bool)
+    ring[mesh.faces[touching].ravel()] = True
+    far = mesh.faces[~ring[mesh.faces].any(axis=1)]
+    kept = {tuple(sorted(f)) for f in F.tolist()}
+    assert far.shape[0] > 1000 and all(tuple(sorted(f)) in kept for f in far.tolist())
+
+
+def test_refine_near_one_triangle_by_hand_and_bad_input():
+    # a square of two triangles; refining around vertex 1 splits its triangle in four and halves the other
+    quad = Mesh(np.array([[0.0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]]), np.array([[0, 1, 2], [0, 2, 3]]))
+    fine = refine_near(quad, np.array([False, True, False, False]), max_edge_mm=2.0)
+    assert fine.mesh.n_faces == 6 and fine.mesh.n_vertices == 7
+    np.testing.assert_allclose(_boundary_length(fine.mesh.vertices, fine.mesh.faces), 8.0)
+    assert refine_near(quad, np.zeros(4, dtype=bool), max_edge_mm=0.1).mesh.n_faces == 2
+    with pytest.raises(InputError, match="near"):
+        refine_near(quad, np.zeros(3, dtype=bool), max_edge_mm=1.0)
+    with pytest.raises(InputError, match="max_edge_mm"):
+        refine_near(quad, np.ones(4, dtype=bool), max_edge_mm=0.0)

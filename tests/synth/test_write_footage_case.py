@@ -11,15 +11,18 @@ from facecap.cameras import read_camera_file
 from facecap.errors import InputError
 from facecap.io import read_mesh
 from facecap.synth import generate_performance
+from facecap.synth import load_ict_sample
 from facecap.synth.wrinkle_scan import subdivide_scan
-from facecap.synth.write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, write_footage_case
+from facecap.synth.wrinkles import add_wrinkles, every_wrinkle_at_once, place_wrinkles
+from facecap.synth.write_footage_case import (MOCAP_RATE_HZ, VIDEO_RATE_HZ, _render_frames, _render_mesh,
+                                              write_footage_case)
 
 
 @pytest.fixture(scope="module")
 def footage(tmp_path_factory):
     folder = tmp_path_factory.mktemp("footage")
     files = write_footage_case(folder, n_frames=9, seed=2, levels=1, image_size=(346, 260), ao_rays=16, bits=16,
-                               n_markers=30)
+                               n_markers=30, render_edge_mm=0.6)
     return folder, files
 
 
@@ -99,7 +102,7 @@ def test_offset_and_own_cameras(tmp_path, footage):
     setup = read_camera_file(files.cameras)
     one = setup.cameras[1]
     out = write_footage_case(tmp_path / "case", n_frames=9, seed=2, levels=1, ao_rays=8, n_markers=30,
-                             first_mocap_frame=2, cameras=[one])
+                             first_mocap_frame=2, cameras=[one], render_edge_mm=None)
     assert [p.name for p in out.videos] == [one.name] and len(out.masks) == 1
     assert len(sorted(out.videos[0].glob("frame_*.png"))) == 2  # mocap frames 2 and 6
     again = read_camera_file(out.cameras)
@@ -111,7 +114,42 @@ def test_offset_and_own_cameras(tmp_path, footage):
 def test_bad_options_write_nothing(tmp_path):
     for options, message in (({"bits": 12}, "bits"), ({"image_size": (100,)}, "image_size"),
                              ({"image_size": (8, 8)}, "image_size"), ({"ao_rays": 0}, "ao_rays"),
+                             ({"render_edge_mm": 0.0}, "render_edge_mm"), ({"render_edge_mm": "fine"}, "render_edge_mm"),
                              ({"first_mocap_frame": 4}, "first_mocap_frame"), ({"cameras": []}, "cameras")):
         with pytest.raises(InputError, match=message):
             write_footage_case(tmp_path / "case", n_frames=2, **options)
     assert not (tmp_path / "case").exists() or not any((tmp_path / "case").iterdir())
+
+
+def test_the_footage_is_rendered_from_a_surface_that_holds_the_truth_wrinkles():
+    """The rendered mesh: the truth's own vertices where the scan has them, the truth's valley bottoms on it.
+
+    The scan's vertices sample the analytic wrinkles (``truth.npz``); rendered as they are, a valley a
+    few vertices wide misses its own bottom and shades shallower. The footage's mesh is the scan refined
+    around the wrinkles with their heights evaluated at the new vertices: the truth's valley line
+    (``curve_points``, depth ``d`` below the large scale) must lie on it.
+    """
+    import igl
+
+    sample = load_ict_sample()
+    case = generate_performance(n_frames=5, rate=MOCAP_RATE_HZ, seed=0, sample=sample,
+                                curves=every_wrinkle_at_once(5, sample.expression_names))
+    fine = subdivide_scan(case.scan, levels=2)
+    large = np.stack([fine.upsample @ f for f in case.truth_vertices.astype(np.float64)]).astype(np.float32)
+    curves = place_wrinkles(fine.mesh, sample, seed=0)
+    wrinkled = add_wrinkles(large, fine.mesh.faces, curves, case.weights, rest=fine.mesh.vertices)
+    render = _render_mesh(fine, wrinkled.mask, 0.3)
+    V = _render_frames(render, fine.mesh.faces, large, wrinkled.vertices, curves, wrinkled.activation,
+                       np.array([4]))(4)
+    n = fine.mesh.n_vertices
+    np.testing.assert_array_equal(V[:n], wrinkled.vertices[4])
+    deep = wrinkled.depths[4] >= 0.3
+    bottoms = wrinkled.curve_points[4][deep].astype(np.float64)
+    assert deep.sum() > 100
+    on_render = np.sqrt(igl.point_mesh_squared_distance(bottoms, V, render.mesh.faces)[0])
+    on_scan = np.sqrt(igl.point_mesh_squared_distance(bottoms, wrinkled.vertices[4].astype(np.float64),
+                                                      fine.mesh.faces)[0])
+    depth = wrinkled.depths[4][deep]
+    assert np.median(on_render / depth) < 0.01  # measured 0.002
+    assert np.percentile(on_render, 90) < 0.01  # mm; measured 0.003
+    assert np.median(on_scan) > 5 * np.median(on_render)  # the scan itself: 0.022 mm (5 % of the depth)

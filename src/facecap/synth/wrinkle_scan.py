@@ -1,4 +1,4 @@
-"""A scan fine enough to hold wrinkles: the face subdivided, its original vertices kept first."""
+"""A scan fine enough to hold wrinkles: the face subdivided (everywhere, or near chosen vertices), its original vertices kept first."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from ..errors import InputError
 from ..structures import Mesh
 from ..typing import IntArray
 
-__all__ = ["SubdividedScan", "subdivide_scan"]
+__all__ = ["SubdividedScan", "subdivide_scan", "refine_near"]
 
 
 class SubdividedScan(NamedTuple):
@@ -106,3 +106,109 @@ def subdivide_scan(scan: Mesh, *, levels: int = 2) -> SubdividedScan:
     V[:n] = scan.vertices  # exact, not 1.0 * v
     mesh = Mesh(V, F, source_unit=scan.source_unit)
     return SubdividedScan(mesh=mesh, upsample=S, n_original=n)
+
+
+def _edge_keys(E: IntArray, n: int) -> IntArray:
+    lo, hi = np.minimum(E[..., 0], E[..., 1]), np.maximum(E[..., 0], E[..., 1])
+    return lo.astype(np.int64) * n + hi
+
+
+def _red_green_level(F: IntArray, n: int, marked: np.ndarray) -> tuple[IntArray, IntArray, sp.csr_matrix]:
+    """Split the marked triangles 1-to-4 and close the mesh conformingly.
+
+    Returns the new faces, the index in ``F`` of the triangle each came from, and the
+    averaging matrix.
+
+    A triangle left with two or three split edges is split 1-to-4 as well (repeated until none
+    is); one with a single split edge is halved through it (a "green" split), so no vertex
+    hangs in the middle of another triangle's edge.
+    """
+    corners = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)  # (m, 3, 2): edges ab, bc, ca
+    keys = _edge_keys(corners, n)  # (m, 3)
+    red = marked.copy()
+    while True:
+        split = np.unique(keys[red])
+        count = np.isin(keys, split).sum(axis=1)
+        grow = ~red & (count >= 2)
+        if not grow.any():
+            break
+        red |= grow
+    is_split = np.isin(keys, split)  # (m, 3)
+    mid = n + np.searchsorted(split, keys)  # valid where is_split
+    a, b, c = F[:, 0], F[:, 1], F[:, 2]
+    ab, bc, ca = mid[:, 0], mid[:, 1], mid[:, 2]
+    r = red
+    index = np.arange(F.shape[0])
+    kept = ~red & (count == 0)
+    pieces = [np.stack([a, ab, ca], 1)[r], np.stack([ab, b, bc], 1)[r], np.stack([ca, bc, c], 1)[r],
+              np.stack([ab, bc, ca], 1)[r], F[kept]]
+    parents = [index[r]] * 4 + [index[kept]]
+    for edge, (p, q, o) in enumerate(((a, b, c), (b, c, a), (c, a, b))):  # the split edge p-q, o opposite
+        g = ~red & (count == 1) & is_split[:, edge]
+        m = mid[:, edge]
+        pieces += [np.stack([p, m, o], 1)[g], np.stack([m, q, o], 1)[g]]
+        parents += [index[g]] * 2
+    e = split.size
+    rows = np.concatenate([np.arange(n), np.repeat(n + np.arange(e), 2)])
+    cols = np.concatenate([np.arange(n), np.stack([split // n, split % n], 1).ravel()])
+    vals = np.concatenate([np.ones(n), np.full(2 * e, 0.5)])
+    return (np.concatenate(pieces).astype(np.int64), np.concatenate(parents),
+            sp.csr_matrix((vals, (rows, cols)), shape=(n + e, n)))
+
+
+def refine_near(mesh: Mesh, near: object, *, max_edge_mm: float, max_levels: int = 6) -> SubdividedScan:
+    """Midpoint subdivision where it is needed: the triangles touching ``near`` until their edges are short enough.
+
+    Each level splits 1-to-4 every triangle inside the region (the original triangles with a
+    vertex in ``near``) whose longest edge exceeds ``max_edge_mm``, and closes the mesh around them
+    conformingly (red-green refinement: no vertex hangs on another triangle's edge, so the
+    surface has no crack however its vertices are moved later). The surface is the original
+    one (midpoints), the original vertices first and unchanged, as in :func:`subdivide_scan`.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    near : (n,) bool array_like
+        The vertices around which to refine.
+    max_edge_mm : float
+        Refine until every triangle touching the region has its longest edge at most this long.
+    max_levels : int, default 6
+        At most this many levels.
+
+    Returns
+    -------
+    SubdividedScan
+
+    Raises
+    ------
+    InputError
+        If ``near`` is not one flag per vertex or ``max_edge_mm`` is not positive.
+
+    Examples
+    --------
+    >>> quad = Mesh(np.array([[0.0, 0, 0], [2, 0, 0], [2, 2, 0], [0, 2, 0]]), np.array([[0, 1, 2], [0, 2, 3]]))
+    >>> fine = refine_near(quad, [False, True, False, False], max_edge_mm=2.0)
+    >>> fine.mesh.n_faces, fine.n_original  # the touching triangle in four, its neighbour halved
+    (6, 4)
+    """
+    flags = np.asarray(near)
+    if flags.shape != (mesh.n_vertices,) or flags.dtype != bool:
+        raise InputError(f"near: expected ({mesh.n_vertices},) bools, got {flags.dtype} {flags.shape}")
+    if not float(max_edge_mm) > 0:
+        raise InputError(f"max_edge_mm: expected a positive length, got {max_edge_mm!r}")
+    n = mesh.n_vertices
+    F = mesh.faces
+    S = sp.identity(n, format="csr", dtype=np.float64)
+    inside = flags[F].any(axis=1)  # per current triangle: within an original triangle touching ``near``
+    for _ in range(int(max_levels)):
+        V = S @ mesh.vertices
+        longest = np.max([np.linalg.norm(V[F[:, i]] - V[F[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=0)
+        marked = inside & (longest > max_edge_mm)
+        if not marked.any():
+            break
+        F, parent, level = _red_green_level(F, S.shape[0], marked)
+        inside = inside[parent]
+        S = (level @ S).tocsr()
+    V = S @ mesh.vertices
+    V[:n] = mesh.vertices
+    return SubdividedScan(mesh=Mesh(V, F, source_unit=mesh.source_unit), upsample=S, n_original=n)

@@ -25,8 +25,8 @@ from .generate_performance import vertex_normals_at
 from .ict_sample import IctSample
 
 __all__ = ["WrinkleCurves", "WrinkledPerformance", "WRINKLE_KINDS", "INFLUENCE_WIDTHS", "WRINKLE_EXPRESSIONS",
-           "wrinkle_profile", "place_wrinkles", "wrinkle_activation", "wrinkle_expression_curves", "add_wrinkles",
-           "every_wrinkle_at_once"]
+           "wrinkle_profile", "place_wrinkles", "wrinkle_activation", "wrinkle_heights", "wrinkle_expression_curves",
+           "add_wrinkles", "every_wrinkle_at_once"]
 
 WRINKLE_KINDS = ("forehead", "glabella", "crows_feet", "nasolabial")
 """The wrinkle families :func:`place_wrinkles` can draw."""
@@ -437,6 +437,46 @@ def _influence(curves: WrinkleCurves, rest: FloatArray) -> list[tuple[IntArray, 
     return out
 
 
+def wrinkle_heights(curves: WrinkleCurves, rest: FloatArray, activation: FloatArray
+                    ) -> tuple[BoolArray, IntArray, FloatArray]:
+    """The wrinkles' heights at points of the rest surface, for each frame's activations.
+
+    Parameters
+    ----------
+    curves : WrinkleCurves
+    rest : (n, 3) float array, mm
+        Points on the rest surface the curves lie on (any mesh's vertices: the scan's, or a
+        finer one of the same surface).
+    activation : (T, c) float array
+        Each wrinkle's activation per frame (:func:`wrinkle_activation`).
+
+    Returns
+    -------
+    mask : (n,) bool array
+        The points within some wrinkle's influence (elsewhere the height is exactly 0).
+    moving : (k,) int64 array
+        ``flatnonzero(mask)``.
+    heights : (T, k) float64 array, mm
+        Along the surface normal at ``moving`` (negative in the valleys).
+    """
+    a = np.asarray(activation, dtype=np.float64)
+    peak_width = curves.min_width[None] + a * (curves.max_width - curves.min_width)[None]  # (T, c)
+    n = rest.shape[0]
+    influence = _influence(curves, rest)
+    mask = np.zeros(n, dtype=bool)
+    for idx, _, _ in influence:
+        mask[idx] = True
+    moving = np.flatnonzero(mask)
+    column = np.full(n, -1, dtype=np.int64)
+    column[moving] = np.arange(moving.size)
+    local = np.zeros((a.shape[0], moving.size))  # heights on the mask only: the rest is exactly 0
+    for i, (idx, dist, s) in enumerate(influence):
+        d = a[:, i : i + 1] * curves.max_depth[i] * _depth_taper(s)[None]
+        w = peak_width[:, i : i + 1] * _width_taper(s)[None]
+        local[:, column[idx]] += wrinkle_profile(dist[None], d, w)
+    return mask, moving, local
+
+
 def add_wrinkles(
     large_scale: np.ndarray,
     faces: IntArray,
@@ -493,18 +533,7 @@ def add_wrinkles(
         raise InputError(f"rest: expected shape ({n}, 3), got {rest.shape}")
     a = wrinkle_activation(curves, W)  # (T, c)
     peak_width = curves.min_width[None] + a * (curves.max_width - curves.min_width)[None]  # (T, c)
-    influence = _influence(curves, rest)
-    mask = np.zeros(n, dtype=bool)
-    for idx, _, _ in influence:
-        mask[idx] = True
-    moving = np.flatnonzero(mask)
-    column = np.full(n, -1, dtype=np.int64)
-    column[moving] = np.arange(moving.size)
-    local = np.zeros((T, moving.size))  # heights on the mask only: the rest is exactly 0
-    for i, (idx, dist, s) in enumerate(influence):
-        d = a[:, i : i + 1] * curves.max_depth[i] * _depth_taper(s)[None]
-        w = peak_width[:, i : i + 1] * _width_taper(s)[None]
-        local[:, column[idx]] += wrinkle_profile(dist[None], d, w)
+    mask, moving, local = wrinkle_heights(curves, rest, a)
     heights = np.zeros((T, n), dtype=np.float32)
     heights[:, moving] = local
     vertices = np.array(X, dtype=np.float32)

@@ -7,19 +7,20 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
 
 from ..errors import InputError
 from ..io._atomic import atomic_path, atomic_write_text
 from ..io.write_markers import write_markers
 from ..io.write_mesh import write_mesh
 from ..typing import FloatArray
-from .generate_performance import SyntheticCase, generate_performance
+from .generate_performance import SyntheticCase, generate_performance, vertex_normals_at
 from .ict_sample import IctSample, load_ict_sample
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from .skin_albedo import SkinRegions, skin_albedo
 from .wrinkle_paint import PAINT_COLORS, paint_wrinkles
-from .wrinkle_scan import subdivide_scan
-from .wrinkles import add_wrinkles, place_wrinkles, wrinkle_expression_curves
+from .wrinkle_scan import SubdividedScan, refine_near, subdivide_scan
+from .wrinkles import add_wrinkles, place_wrinkles, wrinkle_expression_curves, wrinkle_heights
 
 __all__ = ["FootageFiles", "stage_cameras", "write_footage_case", "MOCAP_RATE_HZ", "VIDEO_RATE_HZ"]
 
@@ -32,6 +33,9 @@ IMAGE_SIZE = (1384, 1038)
 EXPOSURE = 1.3
 """Linear radiance of a white, fully lit surface, as a fraction of full scale (skin then peaks near 0.7)."""
 _DISTORTION = (-0.10, 0.12, 4e-4, -3e-4, 0.0)  # k1 k2 p1 p2 k3: a mild barrel, as a 25 mm C-mount lens has
+RENDER_EDGE_MM = 0.3
+"""Longest edge of the mesh the footage is rendered from, around the wrinkles (see ``write_footage_case``):
+the cross-section benchmark's setting, to become the default once the wrinkle-synthesis benchmark is re-run on it."""
 
 
 class FootageFiles(NamedTuple):
@@ -127,6 +131,48 @@ def _fine_regions(sample: IctSample, upsample: Any, scan_vertices: FloatArray) -
     return SkinRegions(sample.region_labels[parent], sample.region_names, scan_vertices[sample.landmarks[48:60]])
 
 
+def _render_mesh(fine: SubdividedScan, wrinkle_mask: np.ndarray, max_edge_mm: float | None) -> SubdividedScan:
+    """The mesh the footage is rendered from: the scan, refined around its wrinkles (``None``: the scan itself)."""
+    mesh = fine.mesh
+    if max_edge_mm is None:
+        return SubdividedScan(mesh, sp.identity(mesh.n_vertices, format="csr"), mesh.n_vertices)
+    near = np.zeros(mesh.n_vertices, dtype=bool)
+    near[np.unique(mesh.faces[np.any(wrinkle_mask[mesh.faces], axis=1)])] = True  # the influence and one ring
+    return refine_near(mesh, near, max_edge_mm=max_edge_mm)
+
+
+def _render_frames(render: SubdividedScan, scan_faces: np.ndarray, large: np.ndarray, wrinkled: np.ndarray,
+                   curves: Any, activation: FloatArray, frames: np.ndarray) -> Any:
+    """``frame(t)``: the rendered mesh's vertices at mocap frame ``t`` (one of ``frames``; scan frame, mm).
+
+    The large scale is carried linearly (the refined surface is the scan's), the wrinkles'
+    heights are evaluated at the new vertices along the scan's vertex normals carried the same
+    way (as :func:`~facecap.synth.wrinkles.add_wrinkles` does at the scan's), and the scan's own
+    vertices are exactly those of the truth.
+    """
+    S = render.upsample
+    n = render.n_original
+    new = np.arange(n, render.mesh.n_vertices)
+    _, moving, heights = wrinkle_heights(curves, render.mesh.vertices[new], activation[frames])
+    moving = new[moving]
+    carry = S[moving]
+    support = np.unique(carry.indices)
+    carry = carry[:, support]
+    row = {int(t): i for i, t in enumerate(frames)}
+
+    def frame(t: int) -> FloatArray:
+        X = large[t].astype(np.float64)
+        V = S @ X
+        V[:n] = wrinkled[t]
+        if moving.size:
+            normals = carry @ vertex_normals_at(X, scan_faces, support)
+            normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+            V[moving] += heights[row[int(t)]][:, None] * normals
+        return V
+
+    return frame
+
+
 def _paint_masks(renderer: FootageRenderer, world: FloatArray, stripe_colors: np.ndarray,
                  n_colors: int) -> list[np.ndarray]:
     """Per camera, a (H, W) uint8 label image of frame 0: 1 + paint index where a paint covers the pixel, else 0."""
@@ -154,6 +200,7 @@ def write_footage_case(
     levels: int = 2,
     image_size: tuple[int, int] = IMAGE_SIZE,
     ao_rays: int = 64,
+    render_edge_mm: float | None = None,
     bits: int = 8,
     n_markers: int | None = None,
     first_mocap_frame: int = 0,
@@ -195,7 +242,17 @@ def write_footage_case(
         Subdivision levels of the scan (2: 148,402 vertices).
     image_size : (int, int), default (1384, 1038)
     ao_rays : int, default 64
-        Ambient-occlusion rays per vertex.
+        Ambient-occlusion rays per vertex (of the rendered mesh).
+    render_edge_mm : float or None, default None
+        With a length (:data:`RENDER_EDGE_MM`, 0.3, is what ``benchmarks/bench_cross_sections.py``
+        measures), the footage shows the wrinkles of the truth, not their sampling at the scan's
+        vertices: it is rendered from the scan refined around the wrinkles (red-green midpoint
+        subdivision, :func:`~facecap.synth.wrinkle_scan.refine_near`) until no edge there is
+        longer than this, with the wrinkles' heights evaluated at the new vertices. On the scan
+        itself (``None``) a valley a few vertices wide shades as a shallower one: at the default
+        scan's 0.7-0.9 mm edges a 1.2 mm wide valley looks 13-25 % shallower to the fit of eq. 6
+        (``docs/synthetic_data.md``). The scan's own vertices are rendered where they are in
+        ``truth.npz``.
     bits : {8, 16}, default 8
         PNG depth. The sensor response is linear (no gamma): a code is proportional to radiance.
     first_mocap_frame : int, default 0
@@ -251,6 +308,9 @@ def write_footage_case(
         raise InputError(f"image_size: expected two integers >= 16, got {image_size!r}")
     if isinstance(ao_rays, bool) or not isinstance(ao_rays, (int, np.integer)) or ao_rays < 1:
         raise InputError(f"ao_rays: expected an integer >= 1, got {ao_rays!r}")
+    if render_edge_mm is not None and (isinstance(render_edge_mm, bool) or not isinstance(render_edge_mm, (int, float))
+                                       or not 0.05 <= render_edge_mm):
+        raise InputError(f"render_edge_mm: expected None or a length >= 0.05 mm, got {render_edge_mm!r}")
     if isinstance(first_mocap_frame, bool) or not isinstance(first_mocap_frame, (int, np.integer)) \
             or not 0 <= first_mocap_frame < 4:
         raise InputError(f"first_mocap_frame: expected an integer in 0..3, got {first_mocap_frame!r}")
@@ -280,14 +340,19 @@ def write_footage_case(
         large[t0 : t0 + 16] = np.moveaxis(flat.reshape(mesh.n_vertices, block.shape[0], 3), 1, 0)
     wrinkle_curves = place_wrinkles(mesh, sample, seed=seed)
     wrinkled = add_wrinkles(large, mesh.faces, wrinkle_curves, case.weights, rest=rest)
-    regions = _fine_regions(sample, S, rest)
-    painted = paint_wrinkles(wrinkle_curves, rest, skin_albedo(rest, seed=seed, region=regions))
-    if cameras is None:
-        cameras = stage_cameras(rest, sample.landmarks, case.mocap_from_scan, image_size=(width, height))
-    renderer = FootageRenderer(mesh.faces, cameras)
     video_frames = np.arange(first_mocap_frame, T, 4)
     if video_frames.size == 0:
         raise InputError(f"n_frames: {T} mocap frames hold no video frame from mocap frame {first_mocap_frame}")
+    render = _render_mesh(fine, wrinkled.mask, render_edge_mm)
+    render_faces = render.mesh.faces
+    render_rest = render.mesh.vertices
+    render_frames = _render_frames(render, mesh.faces, large, wrinkled.vertices, wrinkle_curves, wrinkled.activation,
+                                   video_frames)
+    regions = _fine_regions(sample, (render.upsample @ S).tocsr(), render_rest)
+    painted = paint_wrinkles(wrinkle_curves, render_rest, skin_albedo(render_rest, seed=seed, region=regions))
+    if cameras is None:
+        cameras = stage_cameras(rest, sample.landmarks, case.mocap_from_scan, image_size=(width, height))
+    renderer = FootageRenderer(render_faces, cameras)
     noise_rng = np.random.default_rng(np.random.SeedSequence([seed, 12_5]))
     bar = None
     if progress:
@@ -305,8 +370,8 @@ def write_footage_case(
 
     def first_camera_frames() -> Any:
         for t in video_frames:
-            V = wrinkled.vertices[t].astype(np.float64)
-            occlusion = ambient_occlusion(V, mesh.faces, rays=ao_rays, seed=seed + int(t))
+            V = render_frames(int(t))
+            occlusion = ambient_occlusion(V, render_faces, rays=ao_rays, seed=seed + int(t))
             images = renderer.render(world(int(t), V), EXPOSURE * painted.albedo * occlusion[:, None])
             coded = [quantize(sensor_noise(img, rng=noise_rng), bits=bits) for img in images]
             for kept, image in zip(others, coded[1:]):
@@ -321,7 +386,7 @@ def write_footage_case(
         for folder_k, kept in zip(videos[1:], others):
             write_image_sequence(folder_k, kept)
         first = int(video_frames[0])
-        masks_img = _paint_masks(renderer, world(first, wrinkled.vertices[first].astype(np.float64)),
+        masks_img = _paint_masks(renderer, world(first, render_frames(first)),
                                  np.where(painted.stripe >= 0, painted.color_index[painted.stripe], -1),
                                  len(PAINT_COLORS))
     finally:
@@ -343,6 +408,7 @@ def write_footage_case(
         "video_rate_hz": VIDEO_RATE_HZ, "mocap_rate_hz": MOCAP_RATE_HZ, "first_mocap_frame": int(first_mocap_frame),
         "video_frames": int(video_frames.size), "bits": bits, "response": "linear",
         "exposure": EXPOSURE, "sensor": SENSOR_DEFAULTS, "ao_rays": ao_rays,
+        "render_edge_mm": render_edge_mm, "rendered_vertices": int(render.mesh.n_vertices),
         "lighting": "uniform sky, ambient occlusion (cosine-weighted visibility)",
         "paints": {str(i): list(c) for i, c in enumerate(PAINT_COLORS)},
         "mask_labels": "0 = no paint, 1 + i = paint i",
