@@ -29,9 +29,9 @@ In the order a user meets them:
   (``write_synthetic_case.py``): a case on disk as a user would hold it
   (scan, take, map, truth), as :class:`CaseFiles`.
 - Footage with ground truth for the wrinkle layer (Bickel et al. 2007, section 5):
-  :func:`subdivide_scan`, :class:`SubdividedScan` (``wrinkle_scan.py``), the
+  :func:`subdivide_scan`, :class:`SubdividedScan`, :func:`refine_near` (``wrinkle_scan.py``), the
   scan fine enough to hold wrinkles; :func:`place_wrinkles`,
-  :func:`add_wrinkles`, :func:`wrinkle_profile`, :func:`wrinkle_activation`,
+  :func:`add_wrinkles`, :func:`wrinkle_heights`, :func:`wrinkle_profile`, :func:`wrinkle_activation`,
   :class:`WrinkleCurves`, :class:`WrinkledPerformance`, :data:`WRINKLE_KINDS`,
   :data:`INFLUENCE_WIDTHS`, :func:`wrinkle_expression_curves`, :func:`every_wrinkle_at_once`,
   :data:`WRINKLE_EXPRESSIONS` (``wrinkles.py``), the truth wrinkles;
@@ -65,10 +65,10 @@ from .scan_expression import ScannedExpression, scan_expression
 from .skin_albedo import BASE_SKIN_TONE, SkinRegions, skin_albedo
 from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
 from .write_synthetic_case import CaseFiles, write_planned_scans, write_synthetic_case
-from .wrinkle_scan import SubdividedScan, subdivide_scan
+from .wrinkle_scan import SubdividedScan, refine_near, subdivide_scan
 from .wrinkles import (INFLUENCE_WIDTHS, WRINKLE_EXPRESSIONS, WRINKLE_KINDS, WrinkleCurves, WrinkledPerformance,
                        add_wrinkles, every_wrinkle_at_once, place_wrinkles, wrinkle_activation,
-                       wrinkle_expression_curves, wrinkle_profile)
+                       wrinkle_expression_curves, wrinkle_heights, wrinkle_profile)
 from .wrinkle_paint import PAINT_COLORS, PAINT_HALF_WIDTH, PaintedSkin, paint_wrinkles
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from .write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, FootageFiles, stage_cameras, write_footage_case
@@ -110,10 +110,12 @@ __all__ = [
     "CaseFiles",
     "subdivide_scan",
     "SubdividedScan",
+    "refine_near",
     "place_wrinkles",
     "add_wrinkles",
     "wrinkle_profile",
     "wrinkle_activation",
+    "wrinkle_heights",
     "WrinkleCurves",
     "WrinkledPerformance",
     "WRINKLE_KINDS",
