@@ -36,7 +36,7 @@ CASES = {"seed0": (0, None, None), "seed1": (1, 2, 60), "seed5": (5, 3, 60), "se
 TUNED = {"seed0", "seed1"}
 
 
-def _case(work: Path, name: str) -> tuple[Path, Path]:
+def _case(work: Path, name: str, render_edge_mm: float | None) -> tuple[Path, Path]:
     from facecap.synth.generate_performance import random_identity
     from facecap.synth.write_footage_case import write_footage_case
 
@@ -44,7 +44,8 @@ def _case(work: Path, name: str) -> tuple[Path, Path]:
     folder, animate = work / name, work / f"{name}_animate"
     if not (folder / "truth.npz").exists():
         write_footage_case(folder, n_frames=101, seed=seed, n_markers=markers,
-                           identity=None if identity is None else random_identity(identity))
+                           identity=None if identity is None else random_identity(identity),
+                           render_edge_mm=render_edge_mm)
     if not (animate / "performance.json").exists():
         subprocess.run(["facecap", "-q", "animate", "--scan", str(folder / "scan.obj"), "--markers",
                         str(folder / "take.c3d"), "--map", str(folder / "map.json"), "--out", str(animate)], check=True)
@@ -66,12 +67,12 @@ def _metric(D: np.ndarray, true: np.ndarray, mask: np.ndarray) -> tuple[float, f
     return sums["error_sum"] / sums["size_sum"], sums["size_sum"] / sums["count"], sums["outside_max_mm"]
 
 
-def run_case(work: Path, name: str) -> dict:
+def run_case(work: Path, name: str, render_edge_mm: float | None) -> dict:
     from facecap.cameras import open_footage, read_camera_file, read_image
     from facecap.wrinkles import WrinkleFrameStage, track_wrinkles
     from facecap.wrinkles.capture_wrinkles import first_frame_anchors
 
-    folder, animate = _case(work, name)
+    folder, animate = _case(work, name, render_edge_mm)
     setup = read_camera_file(folder / "cameras.json")
     truth = np.load(folder / "truth.npz")
     tracks, track_s = [], []
@@ -154,9 +155,11 @@ def main() -> None:
     parser.add_argument("--work", type=Path, default=Path(__file__).resolve().parent / "_work" / "wrinkle_synthesis")
     parser.add_argument("--results", default="results.json", help="file name in --work for the JSON results")
     parser.add_argument("--speed-levels", type=int, default=0, help="also time the synthesis at this subdivision")
+    parser.add_argument("--render-edge", type=float, default=0.3,
+                        help="render the footage from the scan refined to this edge (mm) near the wrinkles; 0: the scan")
     args = parser.parse_args()
     args.work.mkdir(parents=True, exist_ok=True)
-    results = [run_case(args.work, name) for name in args.cases.split(",") if name]
+    results = [run_case(args.work, name, args.render_edge or None) for name in args.cases.split(",") if name]
     if args.speed_levels:
         results.append({"speed": speed_at(args.speed_levels)})
     (args.work / args.results).write_text(json.dumps(results, indent=1))
