@@ -123,6 +123,47 @@ def test_a_result_without_its_correspondence_map_is_refused(animated_case: tuple
     assert not (tmp_path / "out").exists()
 
 
+def test_a_camera_that_does_not_see_the_face_is_refused(animated_case: tuple[Path, Path], tmp_path: Path) -> None:
+    from dataclasses import replace
+
+    case, animate = animated_case
+    setup = read_camera_file(case / "cameras.json")
+    # the right camera's pose two metres off: its footage still shows the paint, its calibration no face
+    cameras = [setup.cameras[0], replace(setup.cameras[1], T=setup.cameras[1].T + np.array([2000.0, 0.0, 0.0]))]
+    with pytest.raises(InputError, match="camera 'cam_right' does not see the face"):
+        capture_wrinkles(animate, cameras, [case / c.name for c in cameras],
+                         [case / f"mask_{c.name}.png" for c in cameras], tmp_path / "out", video_rate_hz=12.5)
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_calibration_off_the_paint_is_flagged(animated_case: tuple[Path, Path]) -> None:
+    from dataclasses import replace
+
+    from facecap.cameras import open_footage, read_image
+    from facecap.wrinkles import WrinkleFrameStage, check_cameras_see_the_face, track_wrinkles
+
+    case, animate = animated_case
+    setup = read_camera_file(case / "cameras.json")
+    tracks = []
+    for camera in setup.cameras:
+        with open_footage(case / camera.name) as clip:
+            tracked = track_wrinkles(clip, read_image(case / f"mask_{camera.name}.png"), camera=camera.name)
+        tracks.append([[(w.wrinkle, w.color, w.curve()) for w in frame] for frame in tracked])
+
+    def stage(cameras: list) -> WrinkleFrameStage:
+        return WrinkleFrameStage(str(animate), cameras, [str(case / c.name) for c in cameras], tracks,
+                                 np.arange(3) * 4.0, 64, {})
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", FacecapWarning)
+        check_cameras_see_the_face(stage(list(setup.cameras)))  # the true calibration: every point on the face
+    # the left camera 80 mm off (its poses' translation): the face is still in view, the paint mostly is not on it
+    moved = [replace(setup.cameras[0], T=setup.cameras[0].T + np.array([0.0, 80.0, 0.0])), setup.cameras[1]]
+    with pytest.warns(FacecapWarning, match="camera 'cam_left': only") as caught:
+        check_cameras_see_the_face(stage(moved))
+    assert not any("cam_right" in str(w.message) for w in caught)
+
+
 def test_depth_edits_and_a_drawn_wrinkle(animated_case: tuple[Path, Path], wrinkled: Path, tmp_path: Path) -> None:
     from facecap.wrinkles import read_wrinkle_edits
 

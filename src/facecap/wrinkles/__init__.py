@@ -22,8 +22,8 @@
 - :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`
   (``synthesize_wrinkles.py``): valleys imposed and bulges by the shell, region by region (5.3).
 - :func:`capture_wrinkles`, :class:`WrinkleCapture`, :class:`WrinkleFrameStage`,
-  :func:`large_scale_in_mocap`, :func:`first_frame_anchors` (``capture_wrinkles.py``): the whole
-  layer over a take, on the frame runner (``facecap wrinkles``).
+  :func:`large_scale_in_mocap`, :func:`first_frame_anchors`, :func:`check_cameras_see_the_face`
+  (``capture_wrinkles.py``): the whole layer over a take, on the frame runner (``facecap wrinkles``).
 - :class:`WrinkleEdits`, :func:`read_wrinkle_edits`, :class:`DepthEdit`, :class:`DrawnWrinkle`,
   :func:`svg_path_points` (``wrinkle_edits.py``): depth edits per wrinkle and frame range, wrinkles drawn
   by hand (6.2).
@@ -76,6 +76,7 @@ from .capture_wrinkles import (
     WrinkleCapture,
     WrinkleFrameStage,
     capture_wrinkles,
+    check_cameras_see_the_face,
     first_frame_anchors,
     large_scale_in_mocap,
 )
@@ -129,6 +130,7 @@ __all__ = [
     "DEFAULT_LARGE_SCALE_MM",
     "DEFAULT_SMOOTHING_STEPS",
     "first_frame_anchors",
+    "check_cameras_see_the_face",
     "WrinkleEdits",
     "read_wrinkle_edits",
     "DepthEdit",

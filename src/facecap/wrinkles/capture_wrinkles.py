@@ -34,10 +34,20 @@ import numpy as np
 from ..errors import FacecapWarning, InputError
 from ..typing import FloatArray
 
-__all__ = ["WrinkleFrameStage", "WrinkleCapture", "capture_wrinkles", "large_scale_in_mocap", "first_frame_anchors"]
+__all__ = ["WrinkleFrameStage", "WrinkleCapture", "capture_wrinkles", "large_scale_in_mocap", "first_frame_anchors",
+           "check_cameras_see_the_face"]
 
 CURVE_SAMPLES = 48
 """Points per merged valley line in the stage's fixed-size output (and in ``wrinkles.json``)."""
+
+MIN_FACE_IN_VIEW = 0.05
+"""A camera that sees less than this share of the face's vertices at the first video frame is refused: a
+stage camera films the face from the front and sees a third to a half of them; a few percent means a
+calibration that is not this stage's, or a pose in another unit or frame."""
+
+MIN_PAINT_ON_FACE = 0.5
+"""Below this share of a camera's tracked valley points landing on the face at the first video frame, the
+calibration and the footage disagree (the paint is on the skin): a warning names the camera."""
 
 
 def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.ndarray], frame: float) -> FloatArray:
@@ -282,6 +292,38 @@ def first_frame_anchors(stage: WrinkleFrameStage) -> dict[str, Any]:
     return {name: (tri, bary, rest_depth.get(name, np.zeros(len(tri)))) for name, (tri, bary) in lines.items()}
 
 
+def check_cameras_see_the_face(stage: WrinkleFrameStage) -> None:
+    """Refuse a camera that does not see the face at the first video frame; warn when its paint misses the face.
+
+    The face is the large scale at video frame 0 carried into the mocap frame, where the cameras are
+    calibrated. A camera is refused when it sees (in front, inside its image, unoccluded) less than
+    :data:`MIN_FACE_IN_VIEW` of the vertices; a camera that sees the face but whose tracked valley curves
+    mostly miss it (less than :data:`MIN_PAINT_ON_FACE` of their points hit the mesh) gets a
+    :class:`~facecap.errors.FacecapWarning`: its wrinkles would be lost or land elsewhere.
+
+    Raises
+    ------
+    InputError
+        Naming the camera, the share of the face it sees and what to check.
+    """
+    _, caster = stage.geometry(0)
+    for camera, track in zip(stage.cameras, stage.tracks):
+        seen = float(caster.visible_vertices(camera).mean())
+        if seen < MIN_FACE_IN_VIEW:
+            in_front = float(camera.project(caster.V).in_front.mean())
+            raise InputError(f"camera {camera.name!r} does not see the face at video frame 0 ({seen:.1%} of its "
+                             f"vertices in the image, {in_front:.0%} in front of the camera): check its R and T "
+                             "(the mocap frame, in the calibration's unit) against the take")
+        curves = track[0] if len(track) else []
+        if curves:
+            points = np.concatenate([np.asarray(p, dtype=np.float64) for _, _, p in curves])
+            on_face = float(caster.cast_pixels(camera, points).hit.mean())
+            if on_face < MIN_PAINT_ON_FACE:
+                warnings.warn(f"camera {camera.name!r}: only {on_face:.0%} of the painted wrinkles it tracks at "
+                              "video frame 0 land on the face; its calibration may not match the footage "
+                              "(wrinkles that miss the face are left out)", FacecapWarning, stacklevel=3)
+
+
 def _mm_per(unit: str) -> float:
     from ..units import mm_per_unit
 
@@ -362,7 +404,8 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     InputError
         A result without its correspondence map, a camera count that does not match the footage or masks,
         a camera name holding '+' or ':', footage of another size than its calibration, footage that does not
-        cover the take, a mask without a paint, no camera seeing any wrinkle in any frame.
+        cover the take, a mask without a paint, no camera seeing any wrinkle in any frame, a camera that does
+        not see the face (:func:`check_cameras_see_the_face`).
     """
     from ..cameras import open_footage, read_image, synchronize
     from ..io.read_result import read_result
@@ -427,6 +470,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     stage = WrinkleFrameStage(str(result_dir.resolve()), cameras, footage, [track[:n_video] for track in tracks],
                               sync.mocap_frame(np.arange(n_video)), max(n_slots, 1) + len(getattr(edits, "add", ())),
                               opts, edits=edits)
+    check_cameras_see_the_face(stage)
     if anchor:
         stage.anchors = first_frame_anchors(stage)
     t = time.perf_counter()
