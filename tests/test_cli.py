@@ -147,8 +147,11 @@ def test_synth_writes_a_case_and_its_footage(tmp_path, capsys):
     assert a.n_vertices == b.n_vertices and np.abs(a.vertices - b.vertices).max() > 1.0  # another actor
     assert len(_json.loads((tmp_path / "a" / "map.json").read_text())) == take.n_markers - 4  # less the head band
 
-    # one subdivision (37k vertices) keeps the test short; the default's two are write_footage_case's tests
-    assert main(["-q", "synth", "--out", str(tmp_path / "f"), "--frames", "5", "--footage", "--levels", "1"]) == 0
+    # one subdivision (37k vertices), rendered from the scan itself, keeps the test short; the default's two and
+    # the refined rendering are write_footage_case's tests
+    assert main(["-q", "synth", "--out", str(tmp_path / "f"), "--frames", "5", "--footage", "--levels", "1",
+                 "--render-edge", "0"]) == 0
+    assert _json.loads((tmp_path / "f" / "footage.json").read_text())["render_edge_mm"] is None
     ict = load_ict_sample().mesh
     assert read_mesh(tmp_path / "f" / "scan.obj").n_vertices == subdivide_scan(ict, levels=1).mesh.n_vertices
     setup = read_camera_file(tmp_path / "f" / "cameras.json")
@@ -165,3 +168,5 @@ def test_synth_writes_a_case_and_its_footage(tmp_path, capsys):
     assert "--levels" in capsys.readouterr().err and not (tmp_path / "bad").exists()
     assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "5", "--footage", "--levels", "-1"]) == 2
     assert "levels" in capsys.readouterr().err and not (tmp_path / "bad").exists()
+    assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "5", "--footage", "--render-edge", "0.01"]) == 2
+    assert "--render-edge" in capsys.readouterr().err and not (tmp_path / "bad").exists()

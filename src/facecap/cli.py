@@ -426,6 +426,10 @@ def _add_synth(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--levels", type=int, default=2,
                    help="with --footage: subdivisions of the scan (2: 148k vertices, 0.94 mm forehead edges; "
                         "3: 590k, 0.47 mm, valleys shaded closer to their depth) [2]")
+    p.add_argument("--render-edge", type=float, default=None, metavar="MM",
+                   help="with --footage: render from the scan refined around the wrinkles to this edge length, so "
+                        "the images shade the truth's valleys, not their sampling at the scan's vertices "
+                        "(about 8 s per video frame at the default scan); 0: render the scan itself [0.3, RENDER_EDGE_MM]")
     p.set_defaults(func=_cmd_synth)
 
 
@@ -440,13 +444,16 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         raise FacecapError(f"--identity: expected 0 or a positive seed, got {args.identity}")
     if args.levels != 2 and not args.footage:
         raise FacecapError("--levels: only with --footage (the case without footage is on the ICT face itself)")
+    if args.render_edge is not None and args.render_edge != 0 and not 0.05 <= args.render_edge:
+        raise FacecapError(f"--render-edge: expected 0 (off) or a length of at least 0.05 mm, got {args.render_edge:g}")
     identity = random_identity(args.identity) if args.identity else None
     with atomic_folder(args.out, marker_file="truth.npz") as stage:
         if args.footage:
-            from .synth.write_footage_case import write_footage_case
+            from .synth.write_footage_case import RENDER_EDGE_MM, write_footage_case
 
+            edge = RENDER_EDGE_MM if args.render_edge is None else args.render_edge or None
             write_footage_case(stage, n_frames=args.frames, seed=args.seed, identity=identity, levels=args.levels,
-                               progress=not args.quiet)
+                               render_edge_mm=edge, progress=not args.quiet)
         else:
             from .synth.write_synthetic_case import write_synthetic_case
 
