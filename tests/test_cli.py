@@ -1,6 +1,7 @@
 """The command line: exit codes, one-line errors naming the file, nothing written on failure."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -168,5 +169,26 @@ def test_synth_writes_a_case_and_its_footage(tmp_path, capsys):
     assert "--levels" in capsys.readouterr().err and not (tmp_path / "bad").exists()
     assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "5", "--footage", "--levels", "-1"]) == 2
     assert "levels" in capsys.readouterr().err and not (tmp_path / "bad").exists()
-    assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "5", "--footage", "--render-edge", "0.01"]) == 2
-    assert "--render-edge" in capsys.readouterr().err and not (tmp_path / "bad").exists()
+    for bad in (["--footage", "--render-edge", "0.01"], ["--footage", "--render-edge", "inf"],
+                ["--footage", "--render-edge", "nan"], ["--render-edge", "0.3"]):
+        assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "5", *bad]) == 2
+        assert "--render-edge" in capsys.readouterr().err and not (tmp_path / "bad").exists()
+
+
+def test_synth_renders_footage_from_the_refined_scan_by_default(tmp_path, monkeypatch):
+    import importlib
+
+    # the module itself: the package re-exports its function under the same name
+    footage_module = importlib.import_module("facecap.synth.write_footage_case")
+
+    asked = []
+
+    def record(out, **options):  # stands in for the renderer: only the argument the CLI passes is checked here
+        asked.append(options["render_edge_mm"])
+        (Path(out) / "truth.npz").write_bytes(b"")
+
+    monkeypatch.setattr(footage_module, "write_footage_case", record)
+    for extra, expected in (([], footage_module.RENDER_EDGE_MM), (["--render-edge", "0"], None),
+                            (["--render-edge", "0.5"], 0.5)):
+        assert main(["-q", "synth", "--out", str(tmp_path / str(len(asked))), "--frames", "5", "--footage", *extra]) == 0
+        assert asked[-1] == expected

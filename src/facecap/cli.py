@@ -425,11 +425,11 @@ def _add_synth(sub: argparse._SubParsersAction) -> None:
                         "cameras.json, OpenCV calibration files, image folders, paint masks, wrinkle truth")
     p.add_argument("--levels", type=int, default=2,
                    help="with --footage: subdivisions of the scan (2: 148k vertices, 0.94 mm forehead edges; "
-                        "3: 590k, 0.47 mm, valleys shaded closer to their depth) [2]")
+                        "3: 590k, 0.47 mm) [2]")
     p.add_argument("--render-edge", type=float, default=None, metavar="MM",
                    help="with --footage: render from the scan refined around the wrinkles to this edge length, so "
                         "the images shade the truth's valleys, not their sampling at the scan's vertices "
-                        "(about 8 s per video frame at the default scan); 0: render the scan itself [0.3, RENDER_EDGE_MM]")
+                        "(about 8 s per video frame at the default scan); 0: render the scan itself [0.3]")
     p.set_defaults(func=_cmd_synth)
 
 
@@ -444,14 +444,21 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         raise FacecapError(f"--identity: expected 0 or a positive seed, got {args.identity}")
     if args.levels != 2 and not args.footage:
         raise FacecapError("--levels: only with --footage (the case without footage is on the ICT face itself)")
-    if args.render_edge is not None and args.render_edge != 0 and not 0.05 <= args.render_edge:
-        raise FacecapError(f"--render-edge: expected 0 (off) or a length of at least 0.05 mm, got {args.render_edge:g}")
+    if args.render_edge is not None and not args.footage:
+        raise FacecapError("--render-edge: only with --footage (it is how the footage is rendered)")
+    if args.render_edge:
+        from .synth.write_footage_case import MIN_RENDER_EDGE_MM
+
+        if not MIN_RENDER_EDGE_MM <= args.render_edge < float("inf"):
+            raise FacecapError(f"--render-edge: expected 0 (off) or a finite length of at least {MIN_RENDER_EDGE_MM:g} "
+                               f"mm, got {args.render_edge:g}")
     identity = random_identity(args.identity) if args.identity else None
     with atomic_folder(args.out, marker_file="truth.npz") as stage:
         if args.footage:
             from .synth.write_footage_case import RENDER_EDGE_MM, write_footage_case
 
-            edge = RENDER_EDGE_MM if args.render_edge is None else args.render_edge or None
+            # 0 renders the scan itself; write_footage_case refuses a length it cannot render, naming it
+            edge = RENDER_EDGE_MM if args.render_edge is None else (None if args.render_edge == 0 else args.render_edge)
             write_footage_case(stage, n_frames=args.frames, seed=args.seed, identity=identity, levels=args.levels,
                                render_edge_mm=edge, progress=not args.quiet)
         else:
@@ -496,6 +503,9 @@ def _add_wrinkles(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--per-frame-projection", action="store_true",
                    help="cast every frame's splines onto that frame's mesh (the paper) instead of carrying the "
                         "first frame's lines with the skin")
+    p.add_argument("--min-face-in-view", type=float, default=0.05, metavar="SHARE",
+                   help="refuse a camera that sees less of the face's vertices at video frame 0 (a calibration "
+                        "not of this stage); 0 for a close-up camera on a small part of a large scan [0.05]")
     p.add_argument("--export", default="", help="exports, comma-separated, as for animate")
     p.set_defaults(func=_cmd_wrinkles)
 
@@ -544,7 +554,8 @@ def _cmd_wrinkles(args: argparse.Namespace) -> int:
     done = capture_wrinkles(args.result, cameras, args.video, args.masks, args.out, video_rate_hz=rate,
                             first_mocap_frame=first, depth_scale=args.depth_scale, scheduler=scheduler,
                             n_workers=args.workers, work_dir=args.work, exports=parse_export_formats(args.export),
-                            anchor=not args.per_frame_projection, edits=edits, progress=not args.quiet)
+                            anchor=not args.per_frame_projection, edits=edits,
+                            min_face_in_view=args.min_face_in_view, progress=not args.quiet)
     if not args.quiet:
         t = done.timings
         print(f"wrote {done.out_dir}: wrinkles on {done.n_video_frames} video frames (tracking {t['tracking_s']:.1f} s, "

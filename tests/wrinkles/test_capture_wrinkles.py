@@ -134,6 +134,10 @@ def test_a_camera_that_does_not_see_the_face_is_refused(animated_case: tuple[Pat
         capture_wrinkles(animate, cameras, [case / c.name for c in cameras],
                          [case / f"mask_{c.name}.png" for c in cameras], tmp_path / "out", video_rate_hz=12.5)
     assert not (tmp_path / "out").exists()
+    with pytest.raises(InputError, match="min_face_in_view"):
+        capture_wrinkles(animate, cameras, [case / c.name for c in cameras],
+                         [case / f"mask_{c.name}.png" for c in cameras], tmp_path / "out", video_rate_hz=12.5,
+                         min_face_in_view=1.5)
 
 
 def test_a_calibration_off_the_paint_is_flagged(animated_case: tuple[Path, Path]) -> None:
@@ -144,24 +148,28 @@ def test_a_calibration_off_the_paint_is_flagged(animated_case: tuple[Path, Path]
 
     case, animate = animated_case
     setup = read_camera_file(case / "cameras.json")
-    tracks = []
+    first_curves = []
     for camera in setup.cameras:
         with open_footage(case / camera.name) as clip:
             tracked = track_wrinkles(clip, read_image(case / f"mask_{camera.name}.png"), camera=camera.name)
-        tracks.append([[(w.wrinkle, w.color, w.curve()) for w in frame] for frame in tracked])
-
-    def stage(cameras: list) -> WrinkleFrameStage:
-        return WrinkleFrameStage(str(animate), cameras, [str(case / c.name) for c in cameras], tracks,
-                                 np.arange(3) * 4.0, 64, {})
+        first_curves.append([w.curve() for w in tracked[0]])
+    # the face at video frame 0 in the mocap frame, as capture_wrinkles checks it
+    stage = WrinkleFrameStage(str(animate), setup.cameras, [], [[] for _ in setup.cameras],
+                              [setup.first_mocap_frame], 1)
+    _, caster = stage.geometry(0)
 
     with warnings.catch_warnings():
         warnings.simplefilter("error", FacecapWarning)
-        check_cameras_see_the_face(stage(list(setup.cameras)))  # the true calibration: every point on the face
-    # the left camera 80 mm off (its poses' translation): the face is still in view, the paint mostly is not on it
+        coverage = check_cameras_see_the_face(caster, setup.cameras, first_curves)
+    # the true calibration: the stage cameras see a good part of the face and the paint is all on it
+    assert [c.camera for c in coverage] == list(setup.names)
+    assert all(0.3 < c.face_in_view < 0.9 and c.paint_on_face > 0.95 for c in coverage)
+    # the left camera 80 mm off (its translation): the face is still in view, the paint mostly is not on it
     moved = [replace(setup.cameras[0], T=setup.cameras[0].T + np.array([0.0, 80.0, 0.0])), setup.cameras[1]]
     with pytest.warns(FacecapWarning, match="camera 'cam_left': only") as caught:
-        check_cameras_see_the_face(stage(moved))
+        coverage = check_cameras_see_the_face(caster, moved, first_curves)
     assert not any("cam_right" in str(w.message) for w in caught)
+    assert coverage[0].face_in_view > 0.3 and coverage[0].paint_on_face < 0.5 and coverage[1].paint_on_face > 0.95
 
 
 def test_depth_edits_and_a_drawn_wrinkle(animated_case: tuple[Path, Path], wrinkled: Path, tmp_path: Path) -> None:

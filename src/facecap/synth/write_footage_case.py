@@ -34,8 +34,12 @@ EXPOSURE = 1.3
 """Linear radiance of a white, fully lit surface, as a fraction of full scale (skin then peaks near 0.7)."""
 _DISTORTION = (-0.10, 0.12, 4e-4, -3e-4, 0.0)  # k1 k2 p1 p2 k3: a mild barrel, as a 25 mm C-mount lens has
 RENDER_EDGE_MM = 0.3
-"""Longest edge of the mesh the footage is rendered from, around the wrinkles (see ``write_footage_case``):
-the cross-section benchmark's setting, to become the default once the wrinkle-synthesis benchmark is re-run on it."""
+"""Longest edge of the mesh the footage is rendered from, around the wrinkles (see ``write_footage_case``): what
+both wrinkle benchmarks measure on and ``facecap synth --footage``'s default; ``write_footage_case`` itself
+defaults to the scan (None), which keeps the test suite's small takes fast."""
+MIN_RENDER_EDGE_MM = 0.05
+"""Shortest refinement edge accepted, against a slip of the unit: the refined vertices grow as the inverse square of
+the edge (about 300k added around the default scan's wrinkles at 0.3 mm, so some ten million at 0.05 mm)."""
 
 
 class FootageFiles(NamedTuple):
@@ -309,8 +313,9 @@ def write_footage_case(
     if isinstance(ao_rays, bool) or not isinstance(ao_rays, (int, np.integer)) or ao_rays < 1:
         raise InputError(f"ao_rays: expected an integer >= 1, got {ao_rays!r}")
     if render_edge_mm is not None and (isinstance(render_edge_mm, bool) or not isinstance(render_edge_mm, (int, float))
-                                       or not 0.05 <= render_edge_mm):
-        raise InputError(f"render_edge_mm: expected None or a length >= 0.05 mm, got {render_edge_mm!r}")
+                                       or not MIN_RENDER_EDGE_MM <= render_edge_mm < np.inf):
+        raise InputError(f"render_edge_mm: expected None or a finite length >= {MIN_RENDER_EDGE_MM:g} mm, "
+                         f"got {render_edge_mm!r}")
     if isinstance(first_mocap_frame, bool) or not isinstance(first_mocap_frame, (int, np.integer)) \
             or not 0 <= first_mocap_frame < 4:
         raise InputError(f"first_mocap_frame: expected an integer in 0..3, got {first_mocap_frame!r}")

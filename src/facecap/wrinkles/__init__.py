@@ -22,8 +22,8 @@
 - :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`
   (``synthesize_wrinkles.py``): valleys imposed and bulges by the shell, region by region (5.3).
 - :func:`capture_wrinkles`, :class:`WrinkleCapture`, :class:`WrinkleFrameStage`,
-  :func:`large_scale_in_mocap`, :func:`first_frame_anchors`, :func:`check_cameras_see_the_face`
-  (``capture_wrinkles.py``): the whole layer over a take, on the frame runner (``facecap wrinkles``).
+  :func:`large_scale_in_mocap`, :func:`first_frame_anchors`, :func:`check_cameras_see_the_face`,
+  :class:`CameraCoverage` (``capture_wrinkles.py``): the whole layer over a take, on the frame runner (``facecap wrinkles``).
 - :class:`WrinkleEdits`, :func:`read_wrinkle_edits`, :class:`DepthEdit`, :class:`DrawnWrinkle`,
   :func:`svg_path_points` (``wrinkle_edits.py``): depth edits per wrinkle and frame range, wrinkles drawn
   by hand (6.2).
@@ -73,6 +73,7 @@ from .surface_wrinkles import (
 )
 from .synthesize_wrinkles import WrinkleSynthesis, smoothed_normals, synthesize_wrinkles
 from .capture_wrinkles import (
+    CameraCoverage,
     WrinkleCapture,
     WrinkleFrameStage,
     capture_wrinkles,
@@ -131,6 +132,7 @@ __all__ = [
     "DEFAULT_SMOOTHING_STEPS",
     "first_frame_anchors",
     "check_cameras_see_the_face",
+    "CameraCoverage",
     "WrinkleEdits",
     "read_wrinkle_edits",
     "DepthEdit",

@@ -35,7 +35,7 @@ from ..errors import FacecapWarning, InputError
 from ..typing import FloatArray
 
 __all__ = ["WrinkleFrameStage", "WrinkleCapture", "capture_wrinkles", "large_scale_in_mocap", "first_frame_anchors",
-           "check_cameras_see_the_face"]
+           "check_cameras_see_the_face", "CameraCoverage"]
 
 CURVE_SAMPLES = 48
 """Points per merged valley line in the stage's fixed-size output (and in ``wrinkles.json``)."""
@@ -271,16 +271,17 @@ class WrinkleFrameStage:
         return {k: np.stack([np.asarray(f[k]) for f in frames]) for k in frames[0]}, None
 
 
-def first_frame_anchors(stage: WrinkleFrameStage) -> dict[str, Any]:
+def first_frame_anchors(stage: WrinkleFrameStage, geometry: tuple[FloatArray, Any] | None = None) -> dict[str, Any]:
     """Each wrinkle of the first video frame cast onto the large scale there, by identity.
 
-    Returns ``{'<camera>:<id>': (triangles, barycentric, rest_depth)}``: the line on the skin, and the depth the
+    ``geometry`` is ``stage.geometry(0)`` when the caller already has it. Returns
+    ``{'<camera>:<id>': (triangles, barycentric, rest_depth)}``: the line on the skin, and the depth the
     first frame's cross-sections already find along it (subtracted from every frame's: the first frame is the
     scan's expression, so a crease it shows is in the scan).
     """
     from .surface_wrinkles import anchor_curves
 
-    A, caster = stage.geometry(0)
+    A, caster = stage.geometry(0) if geometry is None else geometry
     lines: dict[str, Any] = {}
     for camera, track in zip(stage.cameras, stage.tracks):
         curves = track[0]
@@ -292,36 +293,79 @@ def first_frame_anchors(stage: WrinkleFrameStage) -> dict[str, Any]:
     return {name: (tri, bary, rest_depth.get(name, np.zeros(len(tri)))) for name, (tri, bary) in lines.items()}
 
 
-def check_cameras_see_the_face(stage: WrinkleFrameStage) -> None:
-    """Refuse a camera that does not see the face at the first video frame; warn when its paint misses the face.
+class CameraCoverage(NamedTuple):
+    """What a camera sees of the face at the first video frame (:func:`check_cameras_see_the_face`).
 
-    The face is the large scale at video frame 0 carried into the mocap frame, where the cameras are
-    calibrated. A camera is refused when it sees (in front, inside its image, unoccluded) less than
-    :data:`MIN_FACE_IN_VIEW` of the vertices; a camera that sees the face but whose tracked valley curves
-    mostly miss it (less than :data:`MIN_PAINT_ON_FACE` of their points hit the mesh) gets a
-    :class:`~facecap.errors.FacecapWarning`: its wrinkles would be lost or land elsewhere.
+    Attributes
+    ----------
+    camera : str
+    face_in_view : float
+        Share of the face's vertices the camera sees: in front of it, inside its image, unoccluded.
+    paint_on_face : float
+        Share of the camera's tracked valley points at that frame whose pixel rays hit the face; NaN when
+        no curves were given or it tracks none.
+    """
+
+    camera: str
+    face_in_view: float
+    paint_on_face: float
+
+
+def check_cameras_see_the_face(caster: Any, cameras: Sequence[Any], first_curves: Sequence[Any] | None = None, *,
+                               min_face_in_view: float = MIN_FACE_IN_VIEW,
+                               stacklevel: int = 2) -> list[CameraCoverage]:
+    """Refuse a camera that does not see the face; warn when its tracked paint mostly misses the face.
+
+    Parameters
+    ----------
+    caster : facecap.cameras.RayCaster
+        The face at the first video frame in the mocap frame, where the cameras are calibrated
+        (:meth:`WrinkleFrameStage.geometry`).
+    cameras : sequence of facecap.cameras.Camera
+    first_curves : sequence (per camera) of sequences of (m, 2) arrays, optional
+        Each camera's tracked valley curves at the first video frame, px. Without them (or for a camera
+        that tracks none) only the face is checked.
+    min_face_in_view : float, default :data:`MIN_FACE_IN_VIEW`
+        A camera that sees a smaller share of the face's vertices is refused; 0 turns the refusal off (a
+        close-up camera filming a small part of a full-head scan).
+    stacklevel : int, default 2
+        Of the warning, as :func:`warnings.warn`'s.
+
+    Returns
+    -------
+    list of CameraCoverage
+        One per camera, in order.
 
     Raises
     ------
     InputError
         Naming the camera, the share of the face it sees and what to check.
+
+    Warns
+    -----
+    FacecapWarning
+        A camera less than :data:`MIN_PAINT_ON_FACE` of whose valley points land on the face: its
+        calibration and its footage disagree, and the wrinkles that miss the face would be lost.
     """
-    _, caster = stage.geometry(0)
-    for camera, track in zip(stage.cameras, stage.tracks):
+    out = []
+    for k, camera in enumerate(cameras):
         seen = float(caster.visible_vertices(camera).mean())
-        if seen < MIN_FACE_IN_VIEW:
+        if seen < min_face_in_view:
             in_front = float(camera.project(caster.V).in_front.mean())
-            raise InputError(f"camera {camera.name!r} does not see the face at video frame 0 ({seen:.1%} of its "
-                             f"vertices in the image, {in_front:.0%} in front of the camera): check its R and T "
-                             "(the mocap frame, in the calibration's unit) against the take")
-        curves = track[0] if len(track) else []
+            raise InputError(f"camera {camera.name!r} does not see the face at video frame 0 ({seen:.1%} of the "
+                             f"face's vertices visible in its image, {in_front:.0%} in front of it): check its R "
+                             "and T (the mocap frame, in the calibration's unit) against the take")
+        curves = [] if first_curves is None else list(first_curves[k])
+        on_face = float("nan")
         if curves:
-            points = np.concatenate([np.asarray(p, dtype=np.float64) for _, _, p in curves])
+            points = np.concatenate([np.asarray(c, dtype=np.float64).reshape(-1, 2) for c in curves])
             on_face = float(caster.cast_pixels(camera, points).hit.mean())
             if on_face < MIN_PAINT_ON_FACE:
                 warnings.warn(f"camera {camera.name!r}: only {on_face:.0%} of the painted wrinkles it tracks at "
                               "video frame 0 land on the face; its calibration may not match the footage "
-                              "(wrinkles that miss the face are left out)", FacecapWarning, stacklevel=3)
+                              "(wrinkles that miss the face are left out)", FacecapWarning, stacklevel=stacklevel)
+        out.append(CameraCoverage(camera.name, seen, on_face))
+    return out
 
 
 def _mm_per(unit: str) -> float:
@@ -352,7 +396,8 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
                      first_mocap_frame: float = 0.0, depth_scale: float | Mapping[str, float] = 1.0,
                      scheduler: str | None = "synchronous", n_workers: int = 2, work_dir: Any = None,
                      exports: Sequence[str] = (), chunk_frames: int = 4, anchor: bool = True, edits: Any = None,
-                     progress: bool = False, options: Mapping[str, Any] | None = None) -> WrinkleCapture:
+                     min_face_in_view: float = MIN_FACE_IN_VIEW, progress: bool = False,
+                     options: Mapping[str, Any] | None = None) -> WrinkleCapture:
     """Track, measure and synthesise the painted wrinkles of a take onto its large-scale result.
 
     Parameters
@@ -391,6 +436,9 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
         (Synthesis) for why anchoring is the default.
     edits : WrinkleEdits or path-like, optional
         Depth edits per wrinkle and frame range, wrinkles drawn by hand (:func:`~facecap.wrinkles.read_wrinkle_edits`).
+    min_face_in_view : float, default :data:`MIN_FACE_IN_VIEW`
+        A camera seeing a smaller share of the face at the first video frame is refused before any tracking
+        (:func:`check_cameras_see_the_face`); 0 turns the check off.
     progress : bool, default False
     options : mapping, optional
         More options of :func:`~facecap.wrinkles.synthesize_wrinkles`.
@@ -426,6 +474,9 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
                          f"{len(footage)} footage, {len(masks)} masks")
     if video_rate_hz is None:
         raise InputError("video_rate_hz: the footage's rate is needed (the camera file's footage.rate_hz)")
+    if isinstance(min_face_in_view, bool) or not isinstance(min_face_in_view, (int, float)) \
+            or not 0.0 <= min_face_in_view < 1.0:
+        raise InputError(f"min_face_in_view: expected a share in [0, 1), got {min_face_in_view!r}")
     for camera in cameras:
         if "+" in camera.name or ":" in camera.name:
             raise InputError(f"camera {camera.name!r}: a name with '+' or ':' cannot name wrinkles "
@@ -434,19 +485,29 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
         from .wrinkle_edits import read_wrinkle_edits
 
         edits = read_wrinkle_edits(edits)
-    t = time.perf_counter()
-    tracks, counts = [], []
-    for camera, path, mask in zip(cameras, footage, masks):
-        mask_image = read_image(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask)
+    counts = []
+    for camera, path in zip(cameras, footage):
         with open_footage(path) as clip:
             clip.check_camera(camera)
             counts.append(len(clip))
-            tracked = track_wrinkles(clip, mask_image, camera=camera.name, progress=progress)
-        tracks.append([[(w.wrinkle, w.color, w.curve()) for w in frame] for frame in tracked])
-    timings["tracking_s"] = time.perf_counter() - t
     n_video = min(counts)
     sync = synchronize(result.rate, result.n_frames, video_rate_hz, n_video, first_mocap_frame=first_mocap_frame,
                        footage_name=" and ".join(footage))
+    # the face at video frame 0, before any tracking: a calibration that does not see it is refused at once
+    first = WrinkleFrameStage(str(result_dir.resolve()), cameras, footage, [[] for _ in cameras],
+                              sync.mocap_frame(np.arange(1)), 1)
+    first_geometry = first.geometry(0)
+    check_cameras_see_the_face(first_geometry[1], cameras, min_face_in_view=min_face_in_view)
+    t = time.perf_counter()
+    tracks = []
+    for camera, path, mask in zip(cameras, footage, masks):
+        mask_image = read_image(mask) if isinstance(mask, (str, os.PathLike)) else np.asarray(mask)
+        with open_footage(path) as clip:
+            tracked = track_wrinkles(clip, mask_image, camera=camera.name, progress=progress)
+        tracks.append([[(w.wrinkle, w.color, w.curve()) for w in frame] for frame in tracked])
+    timings["tracking_s"] = time.perf_counter() - t
+    check_cameras_see_the_face(first_geometry[1], cameras, [[p for _, _, p in track[0]] for track in tracks],
+                               min_face_in_view=0.0, stacklevel=3)
     if not any(any(frame) for track in tracks for frame in track):
         raise InputError("no camera sees a painted wrinkle in any frame (check the masks and the footage)")
     n_slots = sum(max((len(frame) for frame in track), default=0) for track in tracks)
@@ -470,9 +531,8 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     stage = WrinkleFrameStage(str(result_dir.resolve()), cameras, footage, [track[:n_video] for track in tracks],
                               sync.mocap_frame(np.arange(n_video)), max(n_slots, 1) + len(getattr(edits, "add", ())),
                               opts, edits=edits)
-    check_cameras_see_the_face(stage)
     if anchor:
-        stage.anchors = first_frame_anchors(stage)
+        stage.anchors = first_frame_anchors(stage, first_geometry)
     t = time.perf_counter()
     own_work = work_dir is None
     work = Path(tempfile.mkdtemp(prefix="facecap-wrinkles-")) if own_work else Path(work_dir)
