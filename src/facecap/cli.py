@@ -480,7 +480,8 @@ def _add_wrinkles(sub: argparse._SubParsersAction) -> None:
         "and synthesise them on the large-scale result with the nonlinear discrete shell, video frame by video "
         "frame on the frame runner; writes a result folder like animate's plus wrinkles.json.",
     )
-    p.add_argument("--result", required=True, help="a facecap animate result folder")
+    p.add_argument("--result", required=True,
+                   help="the large scale: a facecap animate (or facecap blend) result folder")
     p.add_argument("--cameras", required=True, nargs="+",
                    help="the facecap camera file (cameras.json), or one OpenCV calibration YAML per camera in --video order")
     p.add_argument("--video", required=True, nargs="+", help="one image folder or video file per camera")

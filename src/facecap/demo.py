@@ -387,6 +387,7 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     from .cameras import RayCaster, read_camera_file, read_image
     from .deform.animate_scan import animate_scan
     from .io._atomic import atomic_path
+    from .io.mocap_correspondence import read_mocap_correspondence
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
     from .io.read_mesh import read_mesh
@@ -440,8 +441,7 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     plt.close(fig)
 
     # one fitted cross-section against the observed intensities
-    with np.load(folder / "large_scale" / "correspondence.npz") as data:
-        correspondence = {k: data[k] for k in data.files}
+    correspondence = read_mocap_correspondence(folder / "large_scale" / "correspondence.npz")
     caster = RayCaster(large_scale_in_mocap(A[t], correspondence, t), scan.faces)
     curves = [np.asarray(entry["splines_px"][camera.name]) for entry in doc["frames"][video]["wrinkles"]
               if camera.name in entry["splines_px"]]

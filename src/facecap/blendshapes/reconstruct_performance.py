@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.result_rig import ResultRig
+from ..io.mocap_correspondence import write_mocap_correspondence
 from ..io.write_performance import PerformanceWriter
 from ..units import mm_per_unit
 from ..structures import Mesh
@@ -172,6 +173,7 @@ def write_blended_performance(
     exports: Iterable[str] = (),
     metadata: dict[str, Any] | None = None,
     extra_files: dict[str, Any] | None = None,
+    correspondence: dict[str, Any] | None = None,
     batch_frames: int = 64,
     write_vertices: bool = True,
     rig_precision: str = "float32",
@@ -215,6 +217,11 @@ def write_blended_performance(
     extra_files : dict of str to array or str, optional
         Written into the folder before it is moved into place: ``.npy`` names
         get arrays, other names get text.
+    correspondence : dict, optional
+        The map from the output's face back into the capture's frame, written as
+        ``correspondence.npz``: the arguments of
+        :func:`~facecap.io.write_mocap_correspondence` (``mocap_points``,
+        ``face_points``, ``labels``, ``mocap_from_stabilized``).
     batch_frames : int, default 64
     write_vertices : bool, default True
         Write ``vertices.npy`` besides the rig.
@@ -266,6 +273,8 @@ def write_blended_performance(
             in_unit = pose.copy()
             in_unit[:, :3, 3] = template.to_source_unit(in_unit[:, :3, 3])
             np.save(writer.path("head_motion.npy"), in_unit)
+        if correspondence is not None:
+            write_mocap_correspondence(writer.path("correspondence.npz"), **correspondence)
         for name, content in (extra_files or {}).items():
             if name.endswith(".npy"):
                 np.save(writer.path(name), content)

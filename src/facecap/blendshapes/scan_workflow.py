@@ -253,8 +253,9 @@ def blend_take(
     t = time.perf_counter()
     blend = blend_weights_with_head_pose(folder["basis_markers"], conditioned.positions)
     weights, residual = blend.weights, blend.residual_mm
-    head_motion = _head_motion(conditioned, blend.rotations, blend.translations, folder["output_from_mocap"],
-                               int(conditioning.get("rest_frame", 0)))
+    rest_frame = int(conditioning.get("rest_frame", 0))
+    capture_motion = _capture_from_stabilized(conditioned, blend.rotations, blend.translations)
+    head_motion = _head_motion(capture_motion, folder["output_from_mocap"], rest_frame)
     frames = folder["plan"]["frames"]
     header = "frame,time_s," + ",".join(f"basis_{i}_frame_{f}" for i, f in enumerate(frames))
     rows = [f"{t_},{t_ / take.rate:.6f}," + ",".join(f"{w:.6g}" for w in weights[t_]) for t_ in range(len(weights))]
@@ -274,12 +275,21 @@ def blend_take(
     }
     A = np.asarray(folder["output_from_mocap"], dtype=np.float64)
     markers_out = folder["template"].to_source_unit(conditioned.positions @ A[:3, :3].T + A[:3, 3]).astype(np.float32)
+    # the face back into the capture's frame (where cameras are calibrated), as animate writes it: the bases
+    # live in the stabilised mocap frame, so the map is the rigid A^-1 (the warp of correspondence.npz
+    # reproduces it exactly from the rest markers and their images), then the frame's capture motion
+    rest = conditioned.positions[rest_frame]
+    seen = np.isfinite(rest).all(axis=1)
+    correspondence = {"mocap_points": rest[seen], "face_points": rest[seen] @ A[:3, :3].T + A[:3, 3],
+                      "labels": [label for label, s in zip(labels, seen) if s],
+                      "mocap_from_stabilized": capture_motion}
     write_blended_performance(
         out_dir, folder["template"], folder["bases"], weights, rate=take.rate,
-        output_from_bases=folder["output_from_mocap"], head_motion=head_motion, exports=exports, progress=progress,
+        output_from_bases=folder["output_from_mocap"], head_motion=head_motion, correspondence=correspondence,
+        exports=exports, progress=progress,
         write_vertices=write_vertices, rig_precision=rig_precision, export_options=export_options,
         metadata={"source_files": {"bases": str(bases_dir), "markers": str(markers_path)},
-                  "rest_frame": int(conditioning.get("rest_frame", 0)), "planned_frames": frames,
+                  "rest_frame": rest_frame, "planned_frames": frames,
                   "markers": list(labels)},
         extra_files={"weights.npy": weights, "weights.csv": header + "\n" + "\n".join(rows) + "\n",
                      "bases.npy": folder["bases"], "blend_report.json": json.dumps(report, indent=1),
@@ -288,14 +298,12 @@ def blend_take(
     return report
 
 
-def _head_motion(conditioned: ConditionedTake, rotations: np.ndarray, translations: np.ndarray,
-                 output_from_mocap: np.ndarray, rest_frame: int) -> np.ndarray | None:
-    """Head motion per frame in the output (template) frame, mm: ``A (J_t S_t)^-1 A^-1``, anchored at the rest frame.
+def _capture_from_stabilized(conditioned: ConditionedTake, rotations: np.ndarray, translations: np.ndarray
+                             ) -> np.ndarray:
+    """Per frame, the rigid motion carrying the blend's stabilised face back to where the capture saw it, mm.
 
-    ``S_t`` is the take's stabilisation (mocap -> its rest pose), ``J_t`` the
-    blend's rigid correction of it and ``A`` the mocap -> template transform;
-    with no stabilisation ``S_t`` is the identity and the correction alone is
-    the head motion.
+    ``(J_t S_t)^-1``: ``S_t`` is the take's stabilisation (mocap -> its rest pose, the identity when the take
+    was not stabilised), ``J_t`` the blend's rigid correction of it, both in the mocap frame.
     """
     T = rotations.shape[0]
     S = np.tile(np.eye(4), (T, 1, 1))
@@ -303,8 +311,17 @@ def _head_motion(conditioned: ConditionedTake, rotations: np.ndarray, translatio
         S[:, :3, :3], S[:, :3, 3] = conditioned.head_rotations, conditioned.head_translations
     J = np.tile(np.eye(4), (T, 1, 1))
     J[:, :3, :3], J[:, :3, 3] = rotations, translations
+    return np.linalg.inv(J @ S)
+
+
+def _head_motion(capture_from_stabilized: np.ndarray, output_from_mocap: np.ndarray, rest_frame: int
+                 ) -> np.ndarray | None:
+    """Head motion per frame in the output (template) frame, mm: ``A (J_t S_t)^-1 A^-1``, anchored at the rest frame.
+
+    ``(J_t S_t)^-1`` is :func:`_capture_from_stabilized` and ``A`` the mocap -> template transform.
+    """
     A = np.asarray(output_from_mocap, dtype=np.float64)
-    pose = A[None] @ np.linalg.inv(J @ S) @ np.linalg.inv(A)[None]
+    pose = A[None] @ capture_from_stabilized @ np.linalg.inv(A)[None]
     # Anchored at the rest frame, whose blend is the template's own expression in its own pose (the
     # template was registered to that frame's markers): the pose solve's correction there is the
     # bases' disagreement, not head motion. Measured against leaving it in (the capture's own

@@ -512,24 +512,21 @@ def head_pose_in_scan(prepared: PreparedMarkers, sources: np.ndarray, targets: n
 
 
 def _save_correspondence(path: Any, prepared: PreparedMarkers, rest_markers: np.ndarray, centres: np.ndarray) -> None:
-    """The correspondence map and the head motion in the mocap frame, for stages that need the capture's frame.
+    """The correspondence map and the head motion in the mocap frame (:mod:`facecap.io.mocap_correspondence`).
 
-    ``correspondence.npz`` (mm): ``mocap_points`` (K, 3), the rest markers in the (stabilised) mocap frame;
-    ``face_points`` (K, 3), where the warp puts them on the face (the map ``c`` of Bickel et al. 4.1 is the
-    triharmonic warp from the first to the second, its inverse the warp back); ``labels``; and, for a stabilised
-    take, ``mocap_from_stabilized`` (T, 4, 4), the rigid motion carrying frame t's stabilised markers back to where
-    the capture saw them. A face point ``x`` at frame t is then at ``M_t c^-1(x)`` in the mocap frame, where the
-    wrinkle cameras are calibrated.
+    ``mocap_points`` are the rest markers in the (stabilised) mocap frame, ``face_points`` where the warp puts
+    them on the face (the map ``c`` of Bickel et al. 4.1 is the triharmonic warp from the first to the second,
+    its inverse the warp back) and, for a stabilised take, ``mocap_from_stabilized`` the rigid motion carrying
+    frame t's stabilised markers back to where the capture saw them.
     """
-    arrays: dict[str, np.ndarray] = {
-        "mocap_points": np.asarray(rest_markers, np.float64), "face_points": np.asarray(centres, np.float64),
-        "labels": np.asarray(list(prepared.labels), dtype=str), "units": np.asarray("mm"),
-    }
+    from ..io.mocap_correspondence import write_mocap_correspondence
+
+    motion = None
     if prepared.head_rotations is not None:
         stabilize = np.tile(np.eye(4), (prepared.head_rotations.shape[0], 1, 1))
         stabilize[:, :3, :3], stabilize[:, :3, 3] = prepared.head_rotations, prepared.head_translations
-        arrays["mocap_from_stabilized"] = np.linalg.inv(stabilize)
-    np.savez(path, **arrays)
+        motion = np.linalg.inv(stabilize)
+    write_mocap_correspondence(path, rest_markers, centres, prepared.labels, mocap_from_stabilized=motion)
 
 
 def rest_average(P: np.ndarray, rest_frame: int, sigma_frames: float) -> np.ndarray:

@@ -9,6 +9,9 @@ In the order a user meets them:
   (``write_markers.py``) writes one.
 - :func:`read_correspondence` (``read_correspondence.py``): the marker -> scan
   map, and :func:`match_correspondence` to line it up with a take's labels.
+- :func:`write_mocap_correspondence` / :func:`read_mocap_correspondence`
+  (``mocap_correspondence.py``): a result's ``correspondence.npz``, the map from
+  its face back into the capture's frame, where cameras are calibrated.
 - :class:`PerformanceWriter` (``write_performance.py``): the streamed output
   folder every command writes; :func:`read_performance_info` reads its
   metadata back; :func:`import_writers` imports what its exports will need
@@ -43,6 +46,7 @@ function; reach a module itself with ``importlib.import_module``.
 from __future__ import annotations
 
 from .read_correspondence import Correspondence, CorrespondenceMatch, match_correspondence, read_correspondence
+from .mocap_correspondence import read_mocap_correspondence, write_mocap_correspondence
 from .read_markers import MARKER_SUFFIXES, read_markers
 from .read_mesh import read_mesh
 from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditioned_take, write_conditioned_take
@@ -84,6 +88,8 @@ __all__ = [
     "match_correspondence",
     "Correspondence",
     "CorrespondenceMatch",
+    "read_mocap_correspondence",
+    "write_mocap_correspondence",
     "PerformanceWriter",
     "EXPORT_FORMATS",
     "read_performance_info",

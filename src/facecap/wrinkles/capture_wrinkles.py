@@ -144,10 +144,10 @@ class WrinkleFrameStage:
         """The result folder and its correspondence map, opened once per process."""
         opened = getattr(self, "_opened", None)
         if opened is None:
+            from ..io.mocap_correspondence import read_mocap_correspondence
             from ..io.read_result import read_result
 
-            with np.load(Path(self.result_dir) / "correspondence.npz") as data:
-                correspondence = {k: data[k] for k in data.files}
+            correspondence = read_mocap_correspondence(Path(self.result_dir) / "correspondence.npz")
             opened = self._opened = (read_result(self.result_dir), correspondence)
         return opened
 
@@ -403,7 +403,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     Parameters
     ----------
     result_dir : str or path-like
-        A ``facecap animate`` result (it must hold ``correspondence.npz``).
+        A ``facecap animate`` or ``facecap blend`` result (it must hold ``correspondence.npz``).
     cameras : sequence of facecap.cameras.Camera
         Calibrated in the mocap frame, one per footage.
     footage : sequence of str or path-like
@@ -467,7 +467,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     result = read_result(result_dir)
     if not (result_dir / "correspondence.npz").is_file():
         raise InputError("the result has no correspondence.npz (the map into the mocap frame, where the cameras "
-                         "are calibrated): make it with facecap animate", path=str(result_dir))
+                         "are calibrated): make it with facecap animate or facecap blend", path=str(result_dir))
     cameras, footage, masks = list(cameras), [str(f) for f in footage], list(masks)
     if not cameras or len(cameras) != len(footage) or len(masks) != len(footage):
         raise InputError(f"expected one camera and one mask per footage: {len(cameras)} cameras, "
