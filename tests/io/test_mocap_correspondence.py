@@ -42,6 +42,10 @@ def test_an_unstabilised_result_has_no_motion(tmp_path):
     ({"mocap_points": np.full((6, 3), np.nan), "face_points": np.zeros((6, 3))}, "finite"),
     ({"mocap_points": np.zeros((6, 3)), "face_points": np.zeros((6, 3)), "mocap_from_stabilized": np.zeros((4, 4))},
      "mocap_from_stabilized"),
+    ({"mocap_points": np.zeros((6, 3)), "face_points": np.zeros((6, 3)),
+      "mocap_from_stabilized": np.full((2, 4, 4), np.nan)}, "mocap_from_stabilized"),
+    ({"mocap_points": np.full((6, 3), "x"), "face_points": np.zeros((6, 3))}, "numbers"),
+    ({"mocap_points": np.zeros((6, 3)), "face_points": np.zeros((6, 3)), "units": np.asarray("cm")}, "units"),
 ])
 def test_damaged_archives_name_the_file_and_the_problem(tmp_path, arrays, match):
     path = tmp_path / "correspondence.npz"
@@ -51,10 +55,16 @@ def test_damaged_archives_name_the_file_and_the_problem(tmp_path, arrays, match)
     assert "correspondence.npz" in str(caught.value)
 
 
-def test_not_an_archive_or_missing(tmp_path):
+def test_not_an_archive_empty_truncated_or_missing(tmp_path):
     (tmp_path / "text.npz").write_text("not a zip")
-    with pytest.raises(FileFormatError, match="text.npz"):
-        read_mocap_correspondence(tmp_path / "text.npz")
+    (tmp_path / "empty.npz").write_bytes(b"")
+    mocap, face = _points()
+    write_mocap_correspondence(tmp_path / "whole.npz", mocap, face, list("abcdef"))
+    (tmp_path / "half.npz").write_bytes((tmp_path / "whole.npz").read_bytes()[:300])  # a half-copied file
+    (tmp_path / "zipped.npz").write_bytes(b"PK" + b"\x00" * 40)
+    for name in ("text.npz", "empty.npz", "half.npz", "zipped.npz"):
+        with pytest.raises(FileFormatError, match=name):
+            read_mocap_correspondence(tmp_path / name)
     with pytest.raises(FileFormatError, match="gone.npz"):
         read_mocap_correspondence(tmp_path / "gone.npz")
 
@@ -65,4 +75,11 @@ def test_the_writer_refuses_what_it_could_not_read_back(tmp_path):
         write_mocap_correspondence(tmp_path / "c.npz", mocap, face[:5], list("abcdef"))
     with pytest.raises(ValueError):
         write_mocap_correspondence(tmp_path / "c.npz", mocap, face, list("abcdef"), mocap_from_stabilized=np.eye(4))
+    with pytest.raises(ValueError, match="K >= 4"):
+        write_mocap_correspondence(tmp_path / "c.npz", mocap[:3], face[:3], list("abc"))
+    with pytest.raises(ValueError, match="finite"):
+        write_mocap_correspondence(tmp_path / "c.npz", mocap, face, list("abcdef"),
+                                   mocap_from_stabilized=np.full((3, 4, 4), np.nan))
+    with pytest.raises(ValueError, match="labels"):
+        write_mocap_correspondence(tmp_path / "c.npz", mocap, face, list("abc"))
     assert not list(tmp_path.iterdir())

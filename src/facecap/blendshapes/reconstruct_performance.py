@@ -221,7 +221,8 @@ def write_blended_performance(
         The map from the output's face back into the capture's frame, written as
         ``correspondence.npz``: the arguments of
         :func:`~facecap.io.write_mocap_correspondence` (``mocap_points``,
-        ``face_points``, ``labels``, ``mocap_from_stabilized``).
+        ``face_points``, ``labels``, ``mocap_from_stabilized``: (K, 3) mm points,
+        K labels, (T, 4, 4) mm transforms).
     batch_frames : int, default 64
     write_vertices : bool, default True
         Write ``vertices.npy`` besides the rig.

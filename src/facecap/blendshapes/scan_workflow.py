@@ -12,12 +12,13 @@ from __future__ import annotations
 
 import json
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import FacecapWarning, InputError
 from ..io.conditioned_take import file_sha256, read_conditioned_take, write_conditioned_take
 from ..io.read_markers import read_markers
 from ..io.read_mesh import read_mesh
@@ -238,8 +239,10 @@ def blend_take(
 
     Besides the usual output folder (with the rig, and ``vertices.npy`` unless
     ``write_vertices`` is off), writes ``weights.npy`` (T, K), ``weights.csv``,
-    ``bases.npy``, ``markers.npy`` (the conditioned markers in the output frame)
-    and ``blend_report.json`` (per-frame marker residuals).
+    ``bases.npy``, ``markers.npy`` (the conditioned markers in the output frame),
+    ``blend_report.json`` (per-frame marker residuals), ``head_motion.npy`` and
+    ``correspondence.npz`` (:mod:`facecap.io.mocap_correspondence`: the face back
+    into the capture's frame, for the wrinkle layer's cameras).
     """
     folder = read_registered_scans(bases_dir)
     take = read_markers(markers_path, unit=marker_unit)
@@ -280,9 +283,14 @@ def blend_take(
     # reproduces it exactly from the rest markers and their images), then the frame's capture motion
     rest = conditioned.positions[rest_frame]
     seen = np.isfinite(rest).all(axis=1)
-    correspondence = {"mocap_points": rest[seen], "face_points": rest[seen] @ A[:3, :3].T + A[:3, 3],
-                      "labels": [label for label, s in zip(labels, seen) if s],
-                      "mocap_from_stabilized": capture_motion}
+    correspondence = None
+    if seen.sum() >= 4 and np.isfinite(capture_motion).all():
+        correspondence = {"mocap_points": rest[seen], "face_points": rest[seen] @ A[:3, :3].T + A[:3, 3],
+                          "labels": [label for label, s in zip(labels, seen) if s],
+                          "mocap_from_stabilized": capture_motion}
+    else:
+        warnings.warn(f"blend: no correspondence.npz ({int(seen.sum())} markers seen at the rest frame, or a "
+                      "frame's pose not finite): facecap wrinkles cannot use this result", FacecapWarning, stacklevel=2)
     write_blended_performance(
         out_dir, folder["template"], folder["bases"], weights, rate=take.rate,
         output_from_bases=folder["output_from_mocap"], head_motion=head_motion, correspondence=correspondence,

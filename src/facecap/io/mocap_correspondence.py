@@ -10,6 +10,7 @@ the frame's ``mocap_from_stabilized`` (the identity when the take was not stabil
 from __future__ import annotations
 
 import os
+import zipfile
 from typing import Any
 
 import numpy as np
@@ -20,6 +21,29 @@ from ._atomic import atomic_path
 __all__ = ["write_mocap_correspondence", "read_mocap_correspondence"]
 
 
+def _problem(arrays: dict[str, np.ndarray]) -> str | None:
+    """What makes a correspondence unusable (None when it is sound): the one check the writer and the reader share."""
+    missing = [k for k in ("mocap_points", "face_points") if k not in arrays]
+    if missing:
+        return f"correspondence lacks {', '.join(missing)}"
+    mocap, face = arrays["mocap_points"], arrays["face_points"]
+    if not (np.issubdtype(mocap.dtype, np.number) and np.issubdtype(face.dtype, np.number)):
+        return "correspondence: points must be numbers"
+    if mocap.ndim != 2 or mocap.shape[1:] != (3,) or face.shape != mocap.shape or mocap.shape[0] < 4:
+        return f"correspondence: mocap_points {mocap.shape} and face_points {face.shape} must be the same (K, 3), K >= 4"
+    if not (np.isfinite(mocap).all() and np.isfinite(face).all()):
+        return "correspondence: points must be finite"
+    if "labels" in arrays and arrays["labels"].shape != (mocap.shape[0],):
+        return f"correspondence: {arrays['labels'].shape} labels for {mocap.shape[0]} points"
+    if "units" in arrays and str(arrays["units"]) != "mm":
+        return f"correspondence: units {str(arrays['units'])!r}, expected 'mm'"
+    motion = arrays.get("mocap_from_stabilized")
+    if motion is not None and (not np.issubdtype(motion.dtype, np.number) or motion.ndim != 3
+                               or motion.shape[1:] != (4, 4) or not np.isfinite(motion).all()):
+        return f"correspondence: mocap_from_stabilized must be finite (T, 4, 4), got {motion.shape}"
+    return None
+
+
 def write_mocap_correspondence(path: str | os.PathLike[str], mocap_points: Any, face_points: Any, labels: Any, *,
                                mocap_from_stabilized: Any = None) -> None:
     """Write ``correspondence.npz`` (mm).
@@ -28,34 +52,28 @@ def write_mocap_correspondence(path: str | os.PathLike[str], mocap_points: Any, 
     ----------
     path : path-like
     mocap_points : (K, 3) float array, mm
-        Points in the (stabilised) mocap frame: the rest markers.
+        Points in the (stabilised) mocap frame: the rest markers; K >= 4.
     face_points : (K, 3) float array, mm
         Where the face holds them (the result's frame, in mm): the map ``c`` of Bickel et al. 4.1 carries
         ``mocap_points`` there.
     labels : sequence of str
         One per point.
-    mocap_from_stabilized : (T, 4, 4) float array, optional
+    mocap_from_stabilized : (T, 4, 4) float array, mm, optional
         Per frame, the rigid motion carrying the stabilised markers back to where the capture saw them.
 
     Raises
     ------
     ValueError
-        On shapes that do not agree or non-finite points (a bug of the caller, not a user's file).
+        On anything :func:`read_mocap_correspondence` would refuse (a bug of the caller, not a user's file).
     """
-    mocap = np.asarray(mocap_points, dtype=np.float64)
-    face = np.asarray(face_points, dtype=np.float64)
-    names = np.asarray(list(labels), dtype=str)
-    if mocap.ndim != 2 or mocap.shape[1] != 3 or face.shape != mocap.shape or names.shape != (mocap.shape[0],):
-        raise ValueError(f"correspondence: mocap {mocap.shape}, face {face.shape}, labels {names.shape} do not agree")
-    if not (np.isfinite(mocap).all() and np.isfinite(face).all()):
-        raise ValueError("correspondence: points must be finite")
-    arrays: dict[str, np.ndarray] = {"mocap_points": mocap, "face_points": face, "labels": names,
-                                     "units": np.asarray("mm")}
+    arrays: dict[str, np.ndarray] = {"mocap_points": np.asarray(mocap_points, dtype=np.float64),
+                                     "face_points": np.asarray(face_points, dtype=np.float64),
+                                     "labels": np.asarray(list(labels), dtype=str), "units": np.asarray("mm")}
     if mocap_from_stabilized is not None:
-        motion = np.asarray(mocap_from_stabilized, dtype=np.float64)
-        if motion.ndim != 3 or motion.shape[1:] != (4, 4):
-            raise ValueError(f"mocap_from_stabilized: expected (T, 4, 4), got {motion.shape}")
-        arrays["mocap_from_stabilized"] = motion
+        arrays["mocap_from_stabilized"] = np.asarray(mocap_from_stabilized, dtype=np.float64)
+    problem = _problem(arrays)
+    if problem is not None:
+        raise ValueError(problem)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:  # a file object: np.savez would append .npz to a temporary name
             np.savez(f, **arrays)
@@ -68,24 +86,16 @@ def read_mocap_correspondence(path: str | os.PathLike[str]) -> dict[str, np.ndar
     Raises
     ------
     FileFormatError
-        Naming the file: not an npz archive, a missing array, shapes that do not agree, non-finite points.
+        Naming the file: missing, empty, truncated or not an npz archive, a missing array, shapes that do not
+        agree, points that are not finite numbers, another unit than mm.
     """
     try:
-        with np.load(path, allow_pickle=False) as data:
+        # the file opened here, so that it is closed when numpy's zip reader fails on a damaged archive
+        with open(path, "rb") as f, np.load(f, allow_pickle=False) as data:
             arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise FileFormatError(f"not a readable correspondence archive ({exc})", path=str(path)) from exc
-    missing = [k for k in ("mocap_points", "face_points") if k not in arrays]
-    if missing:
-        raise FileFormatError(f"correspondence lacks {', '.join(missing)}", path=str(path))
-    mocap, face = arrays["mocap_points"], arrays["face_points"]
-    if mocap.ndim != 2 or mocap.shape[1:] != (3,) or face.shape != mocap.shape or mocap.shape[0] < 4:
-        raise FileFormatError(f"correspondence: mocap_points {mocap.shape} and face_points {face.shape} must be the "
-                              "same (K, 3), K >= 4", path=str(path))
-    if not (np.isfinite(mocap).all() and np.isfinite(face).all()):
-        raise FileFormatError("correspondence: points must be finite", path=str(path))
-    motion = arrays.get("mocap_from_stabilized")
-    if motion is not None and (motion.ndim != 3 or motion.shape[1:] != (4, 4) or not np.isfinite(motion).all()):
-        raise FileFormatError(f"correspondence: mocap_from_stabilized must be finite (T, 4, 4), got {motion.shape}",
-                              path=str(path))
+    problem = _problem(arrays)
+    if problem is not None:
+        raise FileFormatError(problem, path=str(path))
     return arrays
