@@ -446,8 +446,15 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     curves = [np.asarray(entry["splines_px"][camera.name]) for entry in doc["frames"][video]["wrinkles"]
               if camera.name in entry["splines_px"]]
     sections = fit_cross_sections(image, curves, camera, caster)
-    best = int(np.nanargmax(np.where(sections.fit.has_wrinkle, sections.fit.depth, -1.0)))
     fit, samples = sections.fit, sections.samples
+    # a typical, well-measured cross-section: among the detected wrinkles at least as deep as their median,
+    # the one the model fits best (the deepest fit is as often a profile that the paint or the outline cut
+    # short, fitted by a wide shallow model)
+    found = fit.has_wrinkle & np.isfinite(fit.rms)
+    if not found.any():  # nothing detected: show the best-fitted profile, flat
+        found = np.isfinite(fit.rms)
+    deep = found & (fit.depth >= np.median(fit.depth[found]))
+    best = int(np.flatnonzero(deep)[np.argmin(fit.rms[deep])])
     valid = samples.valid[best]
     p = samples.p
     fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
