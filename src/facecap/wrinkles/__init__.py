@@ -23,7 +23,7 @@
   (``synthesize_wrinkles.py``): valleys imposed and bulges by the shell, region by region (5.3).
 - :func:`capture_wrinkles`, :class:`WrinkleCapture`, :class:`WrinkleFrameStage`,
   :func:`large_scale_in_mocap`, :func:`first_frame_anchors`, :func:`check_cameras_see_the_face`,
-  :class:`CameraCoverage` (``capture_wrinkles.py``): the whole layer over a take, on the frame runner (``facecap wrinkles``).
+  :func:`check_paint_on_face` (``capture_wrinkles.py``): the whole layer over a take, on the frame runner (``facecap wrinkles``).
 - :class:`WrinkleEdits`, :func:`read_wrinkle_edits`, :class:`DepthEdit`, :class:`DrawnWrinkle`,
   :func:`svg_path_points` (``wrinkle_edits.py``): depth edits per wrinkle and frame range, wrinkles drawn
   by hand (6.2).
@@ -73,11 +73,11 @@ from .surface_wrinkles import (
 )
 from .synthesize_wrinkles import WrinkleSynthesis, smoothed_normals, synthesize_wrinkles
 from .capture_wrinkles import (
-    CameraCoverage,
     WrinkleCapture,
     WrinkleFrameStage,
     capture_wrinkles,
     check_cameras_see_the_face,
+    check_paint_on_face,
     first_frame_anchors,
     large_scale_in_mocap,
 )
@@ -132,7 +132,7 @@ __all__ = [
     "DEFAULT_SMOOTHING_STEPS",
     "first_frame_anchors",
     "check_cameras_see_the_face",
-    "CameraCoverage",
+    "check_paint_on_face",
     "WrinkleEdits",
     "read_wrinkle_edits",
     "DepthEdit",

@@ -35,7 +35,7 @@ from ..errors import FacecapWarning, InputError
 from ..typing import FloatArray
 
 __all__ = ["WrinkleFrameStage", "WrinkleCapture", "capture_wrinkles", "large_scale_in_mocap", "first_frame_anchors",
-           "check_cameras_see_the_face", "CameraCoverage"]
+           "check_cameras_see_the_face", "check_paint_on_face"]
 
 CURVE_SAMPLES = 48
 """Points per merged valley line in the stage's fixed-size output (and in ``wrinkles.json``)."""
@@ -293,28 +293,9 @@ def first_frame_anchors(stage: WrinkleFrameStage, geometry: tuple[FloatArray, An
     return {name: (tri, bary, rest_depth.get(name, np.zeros(len(tri)))) for name, (tri, bary) in lines.items()}
 
 
-class CameraCoverage(NamedTuple):
-    """What a camera sees of the face at the first video frame (:func:`check_cameras_see_the_face`).
-
-    Attributes
-    ----------
-    camera : str
-    face_in_view : float
-        Share of the face's vertices the camera sees: in front of it, inside its image, unoccluded.
-    paint_on_face : float
-        Share of the camera's tracked valley points at that frame whose pixel rays hit the face; NaN when
-        no curves were given or it tracks none.
-    """
-
-    camera: str
-    face_in_view: float
-    paint_on_face: float
-
-
-def check_cameras_see_the_face(caster: Any, cameras: Sequence[Any], first_curves: Sequence[Any] | None = None, *,
-                               min_face_in_view: float = MIN_FACE_IN_VIEW,
-                               stacklevel: int = 2) -> list[CameraCoverage]:
-    """Refuse a camera that does not see the face; warn when its tracked paint mostly misses the face.
+def check_cameras_see_the_face(caster: Any, cameras: Sequence[Any], *,
+                               min_face_in_view: float = MIN_FACE_IN_VIEW) -> list[float]:
+    """Refuse a camera that does not see the face at the first video frame.
 
     Parameters
     ----------
@@ -322,50 +303,73 @@ def check_cameras_see_the_face(caster: Any, cameras: Sequence[Any], first_curves
         The face at the first video frame in the mocap frame, where the cameras are calibrated
         (:meth:`WrinkleFrameStage.geometry`).
     cameras : sequence of facecap.cameras.Camera
-    first_curves : sequence (per camera) of sequences of (m, 2) arrays, optional
-        Each camera's tracked valley curves at the first video frame, px. Without them (or for a camera
-        that tracks none) only the face is checked.
     min_face_in_view : float, default :data:`MIN_FACE_IN_VIEW`
-        A camera that sees a smaller share of the face's vertices is refused; 0 turns the refusal off (a
-        close-up camera filming a small part of a full-head scan).
-    stacklevel : int, default 2
-        Of the warning, as :func:`warnings.warn`'s.
+        A camera that sees a smaller share of the face's vertices is refused; 0 lets every camera through
+        (a close-up camera filming a small part of a full-head scan).
 
     Returns
     -------
-    list of CameraCoverage
-        One per camera, in order.
+    list of float
+        Per camera, in order, the share of the face's vertices it sees: in front of it, inside its image,
+        unoccluded.
 
     Raises
     ------
     InputError
         Naming the camera, the share of the face it sees and what to check.
-
-    Warns
-    -----
-    FacecapWarning
-        A camera less than :data:`MIN_PAINT_ON_FACE` of whose valley points land on the face: its
-        calibration and its footage disagree, and the wrinkles that miss the face would be lost.
     """
-    out = []
-    for k, camera in enumerate(cameras):
+    shares = []
+    for camera in cameras:
         seen = float(caster.visible_vertices(camera).mean())
         if seen < min_face_in_view:
             in_front = float(camera.project(caster.V).in_front.mean())
             raise InputError(f"camera {camera.name!r} does not see the face at video frame 0 ({seen:.1%} of the "
                              f"face's vertices visible in its image, {in_front:.0%} in front of it): check its R "
                              "and T (the mocap frame, in the calibration's unit) against the take")
-        curves = [] if first_curves is None else list(first_curves[k])
-        on_face = float("nan")
-        if curves:
-            points = np.concatenate([np.asarray(c, dtype=np.float64).reshape(-1, 2) for c in curves])
-            on_face = float(caster.cast_pixels(camera, points).hit.mean())
-            if on_face < MIN_PAINT_ON_FACE:
-                warnings.warn(f"camera {camera.name!r}: only {on_face:.0%} of the painted wrinkles it tracks at "
-                              "video frame 0 land on the face; its calibration may not match the footage "
-                              "(wrinkles that miss the face are left out)", FacecapWarning, stacklevel=stacklevel)
-        out.append(CameraCoverage(camera.name, seen, on_face))
-    return out
+        shares.append(seen)
+    return shares
+
+
+def check_paint_on_face(caster: Any, cameras: Sequence[Any], first_curves: Sequence[Any], *,
+                        stacklevel: int = 2) -> list[float]:
+    """Warn about a camera whose tracked paint at the first video frame mostly misses the face.
+
+    Parameters
+    ----------
+    caster : facecap.cameras.RayCaster
+        As for :func:`check_cameras_see_the_face`.
+    cameras : sequence of facecap.cameras.Camera
+    first_curves : sequence (per camera) of sequences of (m, 2) arrays, px
+        Each camera's tracked valley curves at the first video frame.
+    stacklevel : int, default 2
+        Of the warning, as :func:`warnings.warn`'s.
+
+    Returns
+    -------
+    list of float
+        Per camera, the share of its valley points whose pixel rays hit the face; NaN where it tracks none.
+
+    Warns
+    -----
+    FacecapWarning
+        A camera less than :data:`MIN_PAINT_ON_FACE` of whose valley points land on the face: its
+        calibration and its footage disagree (the paint is on the skin), and the wrinkles that miss the
+        face would be left out.
+    """
+    shares = []
+    for camera, curves in zip(cameras, first_curves):
+        curves = list(curves)
+        if not curves:
+            shares.append(float("nan"))
+            continue
+        points = np.concatenate([np.asarray(c, dtype=np.float64).reshape(-1, 2) for c in curves])
+        on_face = float(caster.cast_pixels(camera, points).hit.mean())
+        if on_face < MIN_PAINT_ON_FACE:
+            warnings.warn(f"camera {camera.name!r}: only {on_face:.0%} of the painted wrinkles it tracks at "
+                          "video frame 0 land on the face; its calibration may not match the footage "
+                          "(wrinkles that miss the face are left out)", FacecapWarning, stacklevel=stacklevel)
+        shares.append(on_face)
+    return shares
 
 
 def _mm_per(unit: str) -> float:
@@ -494,6 +498,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     sync = synchronize(result.rate, result.n_frames, video_rate_hz, n_video, first_mocap_frame=first_mocap_frame,
                        footage_name=" and ".join(footage))
     # the face at video frame 0, before any tracking: a calibration that does not see it is refused at once
+    # (a stage without tracks, for its geometry alone; the same geometry serves the paint check and the anchors)
     first = WrinkleFrameStage(str(result_dir.resolve()), cameras, footage, [[] for _ in cameras],
                               sync.mocap_frame(np.arange(1)), 1)
     first_geometry = first.geometry(0)
@@ -506,8 +511,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
             tracked = track_wrinkles(clip, mask_image, camera=camera.name, progress=progress)
         tracks.append([[(w.wrinkle, w.color, w.curve()) for w in frame] for frame in tracked])
     timings["tracking_s"] = time.perf_counter() - t
-    check_cameras_see_the_face(first_geometry[1], cameras, [[p for _, _, p in track[0]] for track in tracks],
-                               min_face_in_view=0.0, stacklevel=3)
+    check_paint_on_face(first_geometry[1], cameras, [[p for _, _, p in track[0]] for track in tracks], stacklevel=3)
     if not any(any(frame) for track in tracks for frame in track):
         raise InputError("no camera sees a painted wrinkle in any frame (check the masks and the footage)")
     n_slots = sum(max((len(frame) for frame in track), default=0) for track in tracks)
