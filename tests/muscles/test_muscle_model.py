@@ -56,6 +56,22 @@ def test_skin_at_rest_is_the_scan(anatomy, model) -> None:
     assert model.skin_follows[anatomy.skin_meshed].all()  # the whole meshed face follows the flesh
 
 
+def _matches(fd: np.ndarray, analytic: np.ndarray) -> bool:
+    """Central differences against a Jacobian column: 1e-3 relative over the whole field, where a wrong
+    Jacobian shows, and 1e-2 at the worst node. A fibre near the passive curve's kink (stretch 1) makes the
+    equilibrium only piecewise smooth at the step's scale there, and which element sits at the kink depends
+    on fTetWild's mesh, which differs from run to run (one CI mesh: 1.6e-3 of the largest entry at one
+    node, every other node within 1e-5)."""
+    error = fd - analytic
+    return bool(np.linalg.norm(error) < 1e-3 * np.linalg.norm(analytic)
+                and np.abs(error).max() < 1e-2 * np.abs(analytic).max())
+
+
+def _solved(result) -> np.ndarray:
+    assert result.converged
+    return result.positions
+
+
 def test_activation_jacobian_matches_finite_differences(tight) -> None:
     a, b = _state(tight)
     base = tight.equilibrium(a, b)
@@ -69,27 +85,26 @@ def test_activation_jacobian_matches_finite_differences(tight) -> None:
     for k in active[np.argsort(-np.abs(dXa[active]).max(axis=(1, 2)))[:3]]:
         e = np.zeros_like(a)
         e[k] = h
-        fd = (tight.equilibrium(a + e, b, x0=base.positions).positions
-              - tight.equilibrium(a - e, b, x0=base.positions).positions) / (2 * h)
-        assert np.abs(fd - dXa[k]).max() < 1e-3 * np.abs(dXa[k]).max()
+        fd = (_solved(tight.equilibrium(a + e, b, x0=base.positions))
+              - _solved(tight.equilibrium(a - e, b, x0=base.positions))) / (2 * h)
+        assert _matches(fd, dXa[k])
 
 
 def test_jaw_jacobian_matches_finite_differences(tight) -> None:
     a, b = _state(tight)
     base = tight.equilibrium(a, b)
+    assert base.converged
     _, dXb = tight.jacobians()
     vec = np.concatenate([b[:, :3].ravel(), b[:, 3]])
     h = 1e-4
-    # 1e-3 relative, not tighter: fibres of idle muscles near stretch 1 (the passive curve's
-    # kink) make the equilibrium only piecewise smooth at the scale of the step
     for i in (1, 5, 7, 10):  # rotation-like entries of M_m and a translation
         e = np.zeros(12)
         e[i] = h
         plus, minus = vec + e, vec - e
-        solved = [tight.equilibrium(a, np.hstack([v[:9].reshape(3, 3), v[9:, None]]), x0=base.positions).positions
+        solved = [_solved(tight.equilibrium(a, np.hstack([v[:9].reshape(3, 3), v[9:, None]]), x0=base.positions))
                   for v in (plus, minus)]
         fd = (solved[0] - solved[1]) / (2 * h)
-        assert np.abs(fd - dXb[i]).max() < 1e-3 * np.abs(dXb[i]).max()
+        assert _matches(fd, dXb[i])
 
 
 def test_a_rigid_cranium_moves_the_equilibrium_rigidly(tight) -> None:
