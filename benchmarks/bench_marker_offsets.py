@@ -13,11 +13,14 @@ Rows, per case:
 
 - ``oracle``; ``today``: ``marker_offset_mm=0, rest_average_s=0, temporal_sigma_s=0.02`` (the
   markers taken to lie on the skin, the warp's rest the rest frame alone, the filter's fixed
-  window: what animate did before this item);
+  window: what animate did before this item), and without a head band the most rigid set of skin
+  markers as the head pose (:func:`stabiliser_before_2026_12_04`: ``auto_stabilize`` before the
+  consensus became its choice), so that ``today`` stays the issue's baseline;
   ``offset``: only the offset (warp onto the lifted scan points, offset carried with the surface);
   ``rest avg``: only the averaged rest; ``sigma cv``: only the filter's temporal sigma chosen for the
   take by cross-validation (``temporal_sigma_s='auto'``); ``offset + rest avg``: the defaults of
-  the release before the cross-validated sigma; ``new``: all three (the defaults).
+  the release before the cross-validated sigma; ``new, rigid set``: all three with the stabiliser of
+  ``today``; ``new``: the defaults (all three, and the consensus head pose without a head band).
 - Switch-offs, each re-generating the take with one cause removed (same seed, so the same
   everything else), run ``today`` and ``new``: ``noise 0`` (``noise_mm=0``), ``offset 0``
   (``marker_offset_mm=0``), ``gaps 0`` (``gap_fraction=0``), ``head still`` (no head rotation or
@@ -43,6 +46,7 @@ Run (about 1-2 minutes per case on 2 cores)::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import json
 import statistics
@@ -62,6 +66,7 @@ from cases import HELD_OUT_CASES, TUNED_CASES, Case, make_case  # noqa: E402
 from facecap.deform.animate_scan import DEFAULT_REST_AVERAGE_S, animate_scan, prepare_markers  # noqa: E402
 from facecap.deform.triharmonic_warp import TriharmonicWarp  # noqa: E402
 from facecap.markers.bilateral_filter import bilateral_filter  # noqa: E402
+from facecap.markers.stabilize_head import stabilize_head  # noqa: E402
 from facecap.deform.marker_offsets import MarkerOffsets  # noqa: E402
 from facecap.deform.thin_shell import ThinShellSolver  # noqa: E402
 from facecap.errors import FacecapWarning  # noqa: E402
@@ -74,13 +79,41 @@ TODAY = {"marker_offset_mm": 0.0, "rest_average_s": 0.0, "temporal_sigma_s": 0.0
 FIXED_SIGMA = {"temporal_sigma_s": 0.02}
 METHODS = {"today": TODAY, "offset": {"rest_average_s": 0.0, **FIXED_SIGMA},
            "rest avg": {"marker_offset_mm": 0.0, **FIXED_SIGMA}, "sigma cv": {"marker_offset_mm": 0.0, "rest_average_s": 0.0},
-           "offset + rest avg": FIXED_SIGMA, "new": {}}
+           "offset + rest avg": FIXED_SIGMA, "new, rigid set": {}, "new": {}}
 SWITCH_OFFS: dict[str, dict[str, Any]] = {
     "noise 0": {"noise_mm": 0.0},
     "offset 0": {"marker_offset_mm": 0.0},
     "gaps 0": {"gap_fraction": 0.0},
     "head still": {"head_rotation_deg": 0.0, "head_translation_mm": 0.0},
 }
+
+
+OLD_STABILISER = ("today", "new, rigid set")
+"""Rows run with :func:`stabiliser_before_2026_12_04` (with every switch-off's ``today``)."""
+
+
+@contextlib.contextmanager
+def stabiliser_before_2026_12_04():
+    """``animate``'s automatic stabiliser as it was before 2026-12-04: without a rigid head band, the most rigid set.
+
+    Since then :func:`~facecap.markers.condition_take.auto_stabilize` returns the consensus of the skin
+    markers instead of that set (the still-head test and the head band are unchanged).
+    """
+    condition = importlib.import_module("facecap.markers.condition_take")
+    current = condition.auto_stabilize
+
+    def before(P, rest_frame, preferred):
+        chosen = current(P, rest_frame, preferred)
+        band = sorted(i for i in preferred if not np.isnan(P[rest_frame, i]).any())
+        if chosen is None or sorted(chosen.stable_markers.tolist()) == band:
+            return chosen
+        return stabilize_head(P, rest_frame=rest_frame)
+
+    condition.auto_stabilize = before
+    try:
+        yield
+    finally:
+        condition.auto_stabilize = current
 
 
 def oracle_error(synthetic: SyntheticCase) -> float:
@@ -154,11 +187,13 @@ def run_case(case: Case, n_frames: int, what_if: bool = False) -> dict[str, floa
         folder = Path(tmp)
         row["oracle"] = oracle_error(synthetic)
         for name, options in METHODS.items():
-            row[name] = animate_error(synthetic, folder, **options)
+            with stabiliser_before_2026_12_04() if name in OLD_STABILISER else contextlib.nullcontext():
+                row[name] = animate_error(synthetic, folder, **options)
         for name, change in SWITCH_OFFS.items():
             generator = {**case.generator, **change}
             off = make_case(Case(case.name, case.held_out, generator, case.curves), n_frames=n_frames)
-            row[f"{name}: today"] = animate_error(off, folder, **TODAY)
+            with stabiliser_before_2026_12_04():
+                row[f"{name}: today"] = animate_error(off, folder, **TODAY)
             row[f"{name}: new"] = animate_error(off, folder)
         still = without_head_motion(synthetic)
         row["true head: today"] = animate_error(synthetic, folder, markers=still, stabilize=False, **TODAY)
@@ -183,7 +218,7 @@ def table(rows: dict[str, dict[str, float]]) -> str:
         out.append(line(k, [rows[n][k] for n in names], "{:.3f}"))
     gap = {n: rows[n]["today"] - rows[n]["oracle"] for n in names}
     out.append(line("gap today - oracle (mm)", [gap[n] for n in names], "{:.3f}"))
-    closers = ["offset", "rest avg", "new"] + [k for k in keys if k.startswith("what-if")]
+    closers = ["offset", "rest avg", "new, rigid set", "new"] + [k for k in keys if k.startswith("what-if")]
     for k in closers:
         out.append(line(f"closed by {k} (%)", [100 * (rows[n]["today"] - rows[n][k]) / gap[n] for n in names], "{:.0f}"))
     for k in [*SWITCH_OFFS, "true head"]:

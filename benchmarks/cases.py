@@ -124,6 +124,19 @@ TUNED_CASES: tuple[Case, ...] = (
           "headband_markers": 0},
          "rapid_asymmetric", scan_seed=13,
          description="60-150 ms onsets, L/R intensities and timing differing, no head band"),
+    Case("tuned_real_turns", False,
+         {"seed": 14, "identity": (0.5, -0.8, 0.9, 0.2, -0.6, 0.4, -0.9, 0.7), "n_markers": 100,
+          "noise_mm": 0.25, "gap_fraction": 0.03, "headband_markers": 0, "head_rotation_deg": 8.0,
+          "head_translation_mm": 6.0, "head_pivot": "neck", "head_motion": "turns"},
+         "real", scan_seed=14,
+         description="real-motion curves, 100 markers, no head band, 8 deg turns about the lower neck "
+                     "(added 2026-12-04: the tuned set had no head turning about the neck without a band)"),
+    Case("tuned_speech_turns", False,
+         {"seed": 15, "identity": (-1.1, 0.4, 0.2, -0.9, 0.5, 0.8, 0.3, -0.6), "n_markers": 80,
+          "noise_mm": 0.2, "gap_fraction": 0.04, "headband_markers": 0, "head_rotation_deg": 7.0,
+          "head_pivot": "neck", "head_motion": "turns"},
+         "speech", scan_seed=15,
+         description="speech, 80 markers, no head band, 7 deg turns about the lower neck (added 2026-12-04)"),
 )
 
 HELD_OUT_CASES: tuple[Case, ...] = (

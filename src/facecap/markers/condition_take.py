@@ -22,6 +22,11 @@ __all__ = ["ConditionedTake", "condition_take", "DEFAULT_HEAD_MOTION_SIGMA_S", "
 STILL_HEAD_RATIO = 2.0
 """A head counts as still when its motion is under this many times the disagreement of two estimates of it."""
 
+STILL_HEAD_WITNESS_ROUNDS = 3
+STILL_HEAD_WITNESS_MOTION_MM = 2.0
+"""The consensus the stillness test compares the rigid set with: its motion prior re-estimated three times at a
+2 mm scale, so that it can leave a wrong start behind (the consensus of releases before 2026-12-04)."""
+
 DEFAULT_HEAD_MOTION_SIGMA_S = 0.05
 """Half-width (s) of the smoothing of the stabilising transform over time (see :func:`condition_take`)."""
 
@@ -161,33 +166,42 @@ def condition_take(
 
 
 def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> Stabilization | None:
-    """Stabilise on the most rigid markers, preferring the given ones (head band, reference markers).
+    """Stabilise on a rigid head band when there is one, else on the rigid motion most skin markers agree on.
 
     Markers that are in the take but not in the map are usually on a head
     band or the skull; on a face that barely moves in parts of a take, some
     face markers can look just as rigid, and would then carry expression into
     the stabilisation. So when at least three preferred markers exist and they
-    fit rigidly about as well as the best automatic set (median residual
-    within 1.5x + 0.1 mm), they are used.
+    fit rigidly about as well as the most rigid set of markers
+    (:func:`stabilize_head`'s automatic choice; median residual within 1.5x +
+    0.1 mm), they are used.
 
-    Otherwise the most rigid set of markers is used, unless the head does not
-    visibly move: every skin marker moves with some expression, so a set of
-    them turns with the expressions even on a still head (on a generated take
-    with the head still, 0.5 degrees at the 95th percentile), and stabilising
-    such a take only adds that error (animate 0.43 against 0.37 mm). The test:
-    the most rigid set's rotation against the rotation most markers agree on
-    (:func:`consensus_stabilize`): two estimates that both carry expression,
-    differently. Where the head moves they agree to a fraction of its motion
-    (their disagreement is at most a quarter of the motion on the seven tuned
-    takes that move, 3.4-5.7 degrees); where it stays still the motion found is
-    no larger than their disagreement (0.50 against 0.43 degrees). Below
-    :data:`STILL_HEAD_RATIO` times the disagreement, None is returned.
+    Without a usable band, the head pose of each frame is the rigid motion
+    most skin markers agree on (:func:`consensus_stabilize`, started from the
+    most rigid set), unless the head does not visibly move: every skin marker
+    moves with some expression, so any estimate from them turns with the
+    expressions even on a still head (on a generated take with the head still,
+    0.5 degrees at the 95th percentile), and stabilising such a take only adds
+    that error (animate 0.43 against 0.37 mm). The test: the most rigid set's
+    rotation against a consensus that re-estimates its motion prior
+    (:data:`STILL_HEAD_WITNESS_ROUNDS`, :data:`STILL_HEAD_WITNESS_MOTION_MM`):
+    two estimates that both carry expression, differently. Where the head
+    moves they agree to a fraction of its motion (their disagreement is at
+    most a quarter of the motion on the seven tuned takes that move, 3.4-5.7
+    degrees); where it stays still the motion found is no larger than their
+    disagreement (0.50 against 0.43 degrees). Below :data:`STILL_HEAD_RATIO`
+    times the disagreement, None is returned.
 
-    Without a head band :func:`consensus_stabilize` (``stabilize="consensus"``
-    in :func:`condition_take`) is the alternative; it is not the default
-    because, measured on the tuned takes of ``benchmarks/cases.py``, it halves
-    the median rotation error but lengthens the tail on two of them (worst
-    frame 1.55 degrees instead of 0.32 on a 60-marker take swaying 6 degrees).
+    The consensus rather than the most rigid set (the choice before
+    2026-12-04): a set of 4-8 skin markers chosen for keeping their distances
+    can hold one that an expression moves, and then carries it into every
+    frame (on a tuned take turning 8 degrees about the neck, a member moving
+    2.7 mm made the set 0.43 degrees off at the median; the consensus 0.12).
+    On the five tuned takes without a head band animate's mean error moved
+    from 0.697 to 0.391 mm (the neck-turn take), 0.352 to 0.305, 0.438 to 0.384
+    and 0.392 to 0.441 mm (a 60-marker sway, where for stretches most markers
+    move at once and the consensus follows them: worst 5 % of frames 0.95
+    degrees against the set's 0.46); ``benchmarks/RESULTS.md``.
     """
     auto = stabilize_head(P, rest_frame=rest_frame)
     usable = [i for i in preferred if not np.isnan(P[rest_frame, i]).any()]
@@ -197,9 +211,14 @@ def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> 
             band = stabilize_head(P, rest_frame=rest_frame, stable_markers=usable)
         if np.nanmedian(band.residual_rms) <= 1.5 * np.nanmedian(auto.residual_rms) + 0.1:
             return band
-    if _head_is_still(auto, consensus_stabilize(P, rest_frame=rest_frame, start=auto)):
+    # The stillness test weighs two estimates that err differently; the consensus that stabilises trusts the
+    # start's stillest markers, which makes it closer to the start and so a weaker witness (on a noise-free
+    # take with a still head the rigid set turned 2.7 degrees and it followed to 2.1)
+    witness = consensus_stabilize(P, rest_frame=rest_frame, start=auto, rounds=STILL_HEAD_WITNESS_ROUNDS,
+                                  motion_scale_mm=STILL_HEAD_WITNESS_MOTION_MM)
+    if _head_is_still(auto, witness):
         return None
-    return auto
+    return consensus_stabilize(P, rest_frame=rest_frame, start=auto)
 
 
 def _head_is_still(rigid_set: Stabilization, consensus: Stabilization) -> bool:
