@@ -23,9 +23,11 @@ STILL_HEAD_RATIO = 2.0
 """A head counts as still when its motion is under this many times the disagreement of two estimates of it."""
 
 STILL_HEAD_WITNESS_ROUNDS = 3
+"""Rounds of the consensus the stillness test compares the rigid set with: re-estimating its motion prior lets it
+leave a wrong start behind (the consensus of releases before 2026-12-04)."""
+
 STILL_HEAD_WITNESS_MOTION_MM = 2.0
-"""The consensus the stillness test compares the rigid set with: its motion prior re-estimated three times at a
-2 mm scale, so that it can leave a wrong start behind (the consensus of releases before 2026-12-04)."""
+"""Scale (mm) of that consensus's motion prior."""
 
 DEFAULT_HEAD_MOTION_SIGMA_S = 0.05
 """Half-width (s) of the smoothing of the stabilising transform over time (see :func:`condition_take`)."""

@@ -21,7 +21,6 @@ MIN_CONSENSUS_SCALE_MM = 0.5
 """Floor of that scale: noise estimates of nearly exact data must not make every marker an outlier."""
 
 
-
 def estimate_marker_noise(positions: FloatArray) -> float:
     """Standard deviation of the markers' measurement noise per coordinate (mm), from the data alone.
 
@@ -139,7 +138,7 @@ def consensus_stabilize(
     frame are those that stay still over the take. (The prior's scale was
     2 mm until 2026-12-04: on four tuned takes without a head band, three
     turning about the neck, the median rotation error fell from 0.09-0.18
-    to 0.10-0.15 degrees and the worst 5 % from 0.24-1.42 to 0.21-0.94;
+    to 0.10-0.15 degrees and the worst 5 % from 0.24-1.42 to 0.21-0.95;
     ``benchmarks/RESULTS.md``.) Each step is a weighted Kabsch fit
     (:func:`~facecap.markers.rigid_fit.rigid_fit`), batched over frames. It
     starts from :func:`~facecap.markers.stabilize_head.stabilize_head`'s most
