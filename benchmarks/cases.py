@@ -137,6 +137,13 @@ TUNED_CASES: tuple[Case, ...] = (
           "head_pivot": "neck", "head_motion": "turns"},
          "speech", scan_seed=15,
          description="speech, 80 markers, no head band, 7 deg turns about the lower neck (added 2026-12-04)"),
+    Case("tuned_sparse_band_sway", False,
+         {"seed": 16, "identity": (0.9, 0.3, -0.7, -0.4, 0.8, -0.2, 0.5, -0.9), "n_markers": 45,
+          "noise_mm": 0.3, "gap_fraction": 0.04, "headband_markers": 4, "head_rotation_deg": 9.0,
+          "head_translation_mm": 6.0, "head_pivot": "neck", "head_motion": "sway"},
+         "smooth", scan_seed=16,
+         description="45 markers, head band of 4, 9 deg sway about the lower neck (added 2026-12-04: the tuned "
+                     "set had no sparse layout swaying this far)"),
 )
 
 HELD_OUT_CASES: tuple[Case, ...] = (

@@ -76,3 +76,20 @@ def test_a_still_head_without_band_is_left_unstabilised_and_a_moving_one_is_not(
     moving = generate_performance(head_rotation_deg=4.0, head_pivot="neck", **common)
     out = condition_take(moving.markers, stabilize=True, smooth=False)
     assert out.head_rotations is not None
+
+
+def test_skin_head_pose_chooses_between_the_consensus_and_the_rigid_set() -> None:
+    # Skin markers only, the head turning about the neck: 'rigid_set' is the most rigid set's own
+    # per-frame fit, 'consensus' is consensus_stabilize started from it (both before smoothing).
+    from facecap.markers import consensus_stabilize, fill_gaps, stabilize_head
+
+    case = generate_performance(n_frames=200, seed=14, n_markers=60, headband_markers=0, head_rotation_deg=6.0,
+                                head_pivot="neck", head_motion="turns")
+    P = fill_gaps(case.markers.positions, rate=case.markers.rate).positions
+    start = stabilize_head(P)
+    for choice, expected in (("rigid_set", start), ("consensus", consensus_stabilize(P, start=start))):
+        out = condition_take(case.markers, stabilize=True, smooth=False, head_motion_sigma_s=0.0,
+                             skin_head_pose=choice)
+        np.testing.assert_allclose(out.head_rotations, expected.rotations, atol=1e-12)
+    with pytest.raises(MarkerError, match="skin_head_pose"):
+        condition_take(case.markers, stabilize=True, skin_head_pose="band")

@@ -32,6 +32,10 @@ from .select_scan_frames import ScanPlan, select_scan_frames
 
 __all__ = ["plan_scans", "register_planned_scans", "blend_take", "conditioned_take_path"]
 
+SCAN_SKIN_HEAD_POSE = "rigid_set"
+"""How the scan workflow poses a head without a head band it can recognise (it has no map): the most rigid set
+of markers, not ``animate``'s consensus (see :func:`facecap.markers.auto_stabilize`)."""
+
 
 def conditioned_take_path(plan_path: str | Path) -> Path:
     """Where ``plan-scans`` keeps the conditioned take of ``plan_path``: ``plan.json`` -> ``plan.conditioned.npz``."""
@@ -54,6 +58,7 @@ def _condition(take: MarkerSequence, conditioning: dict[str, Any]) -> Conditione
         head_motion_sigma_s=float(conditioning.get("head_motion_sigma_s", DEFAULT_HEAD_MOTION_SIGMA_S)),
         # plans from before the cross-validated sigma were filtered at 0.02 s
         temporal_sigma_s=conditioning.get("temporal_sigma_s", 0.02),
+        skin_head_pose=conditioning.get("skin_head_pose", SCAN_SKIN_HEAD_POSE),
     )
 
 
@@ -124,6 +129,7 @@ def plan_scans(
     conditioning: dict[str, Any] = {
         "rest_frame": rest_frame, "stabilize": stabilize_setting, "smooth": smooth,
         "head_motion_sigma_s": DEFAULT_HEAD_MOTION_SIGMA_S, "temporal_sigma_s": "auto",
+        "skin_head_pose": SCAN_SKIN_HEAD_POSE,
     }
     conditioned = _condition(take, conditioning)
     conditioning["temporal_sigma_chosen_s"] = conditioned.temporal_sigma_s

@@ -22,6 +22,9 @@ __all__ = ["ConditionedTake", "condition_take", "DEFAULT_HEAD_MOTION_SIGMA_S", "
 STILL_HEAD_RATIO = 2.0
 """A head counts as still when its motion is under this many times the disagreement of two estimates of it."""
 
+SKIN_HEAD_POSES = ("consensus", "rigid_set")
+"""How :func:`auto_stabilize` poses a head without a rigid head band (its ``skin_head_pose``)."""
+
 STILL_HEAD_WITNESS_ROUNDS = 3
 """Rounds of the consensus the stillness test compares the rigid set with: re-estimating its motion prior lets it
 leave a wrong start behind (the consensus of releases before 2026-12-04)."""
@@ -76,6 +79,7 @@ def condition_take(
     preferred_stable: Sequence[str] = (),
     head_motion_sigma_s: float = DEFAULT_HEAD_MOTION_SIGMA_S,
     temporal_sigma_s: float | str = "auto",
+    skin_head_pose: str = "consensus",
 ) -> ConditionedTake:
     """Fill gaps, optionally remove head motion, then filter (Bickel 2007, section 3).
 
@@ -108,6 +112,11 @@ def condition_take(
         sample predicted from its neighbours in time and space, the
         candidate that predicts best), after stabilisation; 0.02 is the
         fixed value of earlier releases.
+    skin_head_pose : {'consensus', 'rigid_set'}, default 'consensus'
+        With ``stabilize=True`` and no rigid head band among
+        ``preferred_stable``: the head pose from the consensus of the skin
+        markers, or from the most rigid set of them (see
+        :func:`auto_stabilize`).
 
     Returns
     -------
@@ -119,6 +128,8 @@ def condition_take(
         If ``rest_frame`` is outside the take or ``stabilize`` names unknown markers.
     """
     T = markers.n_frames
+    if skin_head_pose not in SKIN_HEAD_POSES:
+        raise MarkerError(f"skin_head_pose: expected one of {SKIN_HEAD_POSES}, got {skin_head_pose!r}")
     if not (0 <= rest_frame < T):
         raise MarkerError(f"--rest-frame {rest_frame} is outside the take (0..{T - 1})", path=markers.source_path)
     index = markers.label_index()
@@ -130,7 +141,7 @@ def condition_take(
             stab = consensus_stabilize(P, rest_frame=rest_frame)
         elif isinstance(stabilize, bool):
             preferred = [index[s] for s in preferred_stable if s in index]
-            stab = auto_stabilize(P, rest_frame, preferred)
+            stab = auto_stabilize(P, rest_frame, preferred, skin_head_pose=skin_head_pose)
             if stab is None:
                 warnings.warn(
                     f"{markers.source_path or 'take'}: no head motion beyond what the expressions move the "
@@ -167,7 +178,8 @@ def condition_take(
     )
 
 
-def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> Stabilization | None:
+def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int], *,
+                   skin_head_pose: str = "consensus") -> Stabilization | None:
     """Stabilise on a rigid head band when there is one, else on the rigid motion most skin markers agree on.
 
     Markers that are in the take but not in the map are usually on a head
@@ -204,7 +216,16 @@ def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> 
     and 0.392 to 0.441 mm (a 60-marker sway, where for stretches most markers
     move at once and the consensus follows them: worst 5 % of frames 0.95
     degrees against the set's 0.46); ``benchmarks/RESULTS.md``.
+
+    ``skin_head_pose='rigid_set'`` keeps the most rigid set instead. The scan
+    workflow uses it: ``plan-scans`` has no map, so it cannot prefer a head
+    band, and the frames it plans are the take's extreme expressions, where
+    the consensus errs most; every basis keeps its frame's error. On a tuned
+    45-marker take with a band of 4 swaying 9 degrees the blend was 0.909 mm
+    with the consensus against 0.608 with the set.
     """
+    if skin_head_pose not in SKIN_HEAD_POSES:
+        raise MarkerError(f"skin_head_pose: expected one of {SKIN_HEAD_POSES}, got {skin_head_pose!r}")
     auto = stabilize_head(P, rest_frame=rest_frame)
     usable = [i for i in preferred if not np.isnan(P[rest_frame, i]).any()]
     if len(usable) >= 3:
@@ -220,6 +241,8 @@ def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int]) -> 
                                   motion_scale_mm=STILL_HEAD_WITNESS_MOTION_MM)
     if _head_is_still(auto, witness):
         return None
+    if skin_head_pose == "rigid_set":
+        return auto
     return consensus_stabilize(P, rest_frame=rest_frame, start=auto)
 
 
