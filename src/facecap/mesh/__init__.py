@@ -5,6 +5,8 @@ In the order a user meets them:
 - :func:`check_mesh` (``check_mesh.py``): the defects that make solvers fail
   on real scans, as a :class:`MeshCheck`.
 - :func:`connected_pieces` (``connected_pieces.py``): which vertices belong together.
+- :func:`facing_outward` (``facing_outward.py``): whether a surface's triangles
+  face away from it (outward winding) or into it, from its geometry alone.
 - :func:`weld_duplicate_vertices` (``weld_duplicate_vertices.py``): one vertex
   per position across UV seams, as a :class:`WeldedMesh`.
 - :func:`laplace_operators` (``laplacian.py``): cotangent Laplacian and mixed
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 from .check_mesh import MeshCheck, check_mesh
 from .connected_pieces import connected_pieces
+from .facing_outward import facing_outward
 from .laplacian import LaplaceOperators, laplace_operators
 from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
@@ -32,6 +35,7 @@ __all__ = [
     "check_mesh",
     "MeshCheck",
     "connected_pieces",
+    "facing_outward",
     "weld_duplicate_vertices",
     "WeldedMesh",
     "laplace_operators",
