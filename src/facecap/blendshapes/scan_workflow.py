@@ -32,9 +32,10 @@ from .select_scan_frames import ScanPlan, select_scan_frames
 
 __all__ = ["plan_scans", "register_planned_scans", "blend_take", "conditioned_take_path"]
 
-SCAN_SKIN_HEAD_POSE = "rigid_set"
-"""How the scan workflow poses a head without a head band it can recognise (it has no map): the most rigid set
-of markers, not ``animate``'s consensus (see :func:`facecap.markers.auto_stabilize`)."""
+SCAN_SKIN_HEAD_POSE = "consensus"
+"""How ``plan-scans`` poses a head without a head band it can recognise (it has no map to tell one): the consensus
+of the markers, as ``animate`` does without a band (:func:`facecap.markers.auto_stabilize`); recorded in
+``plan.json``. Plans written before 2026-12-04 have no record and replay the most rigid set they used."""
 
 
 def conditioned_take_path(plan_path: str | Path) -> Path:
@@ -58,7 +59,7 @@ def _condition(take: MarkerSequence, conditioning: dict[str, Any]) -> Conditione
         head_motion_sigma_s=float(conditioning.get("head_motion_sigma_s", DEFAULT_HEAD_MOTION_SIGMA_S)),
         # plans from before the cross-validated sigma were filtered at 0.02 s
         temporal_sigma_s=conditioning.get("temporal_sigma_s", 0.02),
-        skin_head_pose=conditioning.get("skin_head_pose", SCAN_SKIN_HEAD_POSE),
+        skin_head_pose=conditioning.get("skin_head_pose", "rigid_set"),
     )
 
 

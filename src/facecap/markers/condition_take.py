@@ -217,12 +217,8 @@ def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int], *,
     move at once and the consensus follows them: worst 5 % of frames 0.95
     degrees against the set's 0.46); ``benchmarks/RESULTS.md``.
 
-    ``skin_head_pose='rigid_set'`` keeps the most rigid set instead. The scan
-    workflow uses it: ``plan-scans`` has no map, so it cannot prefer a head
-    band, and the frames it plans are the take's extreme expressions, where
-    the consensus errs most; every basis keeps its frame's error. On a tuned
-    45-marker take with a band of 4 swaying 9 degrees the blend was 0.909 mm
-    with the consensus against 0.608 with the set.
+    ``skin_head_pose='rigid_set'`` keeps the most rigid set instead (what
+    plans written before 2026-12-04 replay).
     """
     if skin_head_pose not in SKIN_HEAD_POSES:
         raise MarkerError(f"skin_head_pose: expected one of {SKIN_HEAD_POSES}, got {skin_head_pose!r}")
