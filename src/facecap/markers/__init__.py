@@ -18,6 +18,7 @@ from .bilateral_filter import bilateral_filter
 from .choose_temporal_sigma import DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S, TemporalSigmaChoice, choose_temporal_sigma
 from .condition_take import (
     DEFAULT_HEAD_MOTION_SIGMA_S,
+    SKIN_HEAD_POSES,
     STILL_HEAD_RATIO,
     ConditionedTake,
     auto_stabilize,
@@ -43,6 +44,7 @@ __all__ = [
     "consensus_stabilize",
     "estimate_marker_noise",
     "DEFAULT_HEAD_MOTION_SIGMA_S",
+    "SKIN_HEAD_POSES",
     "STILL_HEAD_RATIO",
     "rigid_fit",
     "RigidTransform",

@@ -17,7 +17,7 @@ from .rigid_fit import RigidTransform
 from .consensus_stabilize import consensus_stabilize
 from .stabilize_head import Stabilization, stabilize_head
 
-__all__ = ["ConditionedTake", "condition_take", "DEFAULT_HEAD_MOTION_SIGMA_S", "STILL_HEAD_RATIO"]
+__all__ = ["ConditionedTake", "condition_take", "DEFAULT_HEAD_MOTION_SIGMA_S", "SKIN_HEAD_POSES", "STILL_HEAD_RATIO"]
 
 STILL_HEAD_RATIO = 2.0
 """A head counts as still when its motion is under this many times the disagreement of two estimates of it."""

@@ -28,7 +28,7 @@ from __future__ import annotations
 from .align_albedo import DEFAULT_ALBEDO_ITERATIONS, UNSEEN_ANCHOR, AlbedoAlignment, align_albedo
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .refine_registration import Refinement, refine_registration
-from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
+from .register_markers_to_scan import MIN_FACING_OUTWARD, MarkerRegistration, register_markers_to_scan
 from .register_scans import (
     DEFAULT_REST_WEIGHT,
     TEMPLATE_DEFORMATION_WEIGHT,
@@ -49,6 +49,7 @@ __all__ = [
     "TEMPLATE_DEFORMATION_WEIGHT",
     "register_markers_to_scan",
     "MarkerRegistration",
+    "MIN_FACING_OUTWARD",
     "register_template_to_scan",
     "TemplateRegistration",
     "DEFAULT_CLOSEST_POINT_WEIGHTS",
