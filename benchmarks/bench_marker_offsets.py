@@ -55,7 +55,7 @@ import tempfile
 import time
 import warnings
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
@@ -66,7 +66,6 @@ from cases import HELD_OUT_CASES, TUNED_CASES, Case, make_case  # noqa: E402
 from facecap.deform.animate_scan import DEFAULT_REST_AVERAGE_S, animate_scan, prepare_markers  # noqa: E402
 from facecap.deform.triharmonic_warp import TriharmonicWarp  # noqa: E402
 from facecap.markers.bilateral_filter import bilateral_filter  # noqa: E402
-from facecap.markers.stabilize_head import stabilize_head  # noqa: E402
 from facecap.deform.marker_offsets import MarkerOffsets  # noqa: E402
 from facecap.deform.thin_shell import ThinShellSolver  # noqa: E402
 from facecap.errors import FacecapWarning  # noqa: E402
@@ -93,21 +92,18 @@ OLD_STABILISER = ("today", "new, rigid set")
 
 
 @contextlib.contextmanager
-def stabiliser_before_2026_12_04():
+def stabiliser_before_2026_12_04() -> Iterator[None]:
     """``animate``'s automatic stabiliser as it was before 2026-12-04: without a rigid head band, the most rigid set.
 
     Since then :func:`~facecap.markers.condition_take.auto_stabilize` returns the consensus of the skin
-    markers instead of that set (the still-head test and the head band are unchanged).
+    markers instead of that set; ``skin_head_pose='rigid_set'`` restores the set, and the head band's
+    test and the still-head test are those of the earlier release.
     """
     condition = importlib.import_module("facecap.markers.condition_take")
     current = condition.auto_stabilize
 
-    def before(P, rest_frame, preferred):
-        chosen = current(P, rest_frame, preferred)
-        band = sorted(i for i in preferred if not np.isnan(P[rest_frame, i]).any())
-        if chosen is None or sorted(chosen.stable_markers.tolist()) == band:
-            return chosen
-        return stabilize_head(P, rest_frame=rest_frame)
+    def before(P: np.ndarray, rest_frame: int, preferred: Any, **_: Any) -> Any:
+        return current(P, rest_frame, preferred, skin_head_pose="rigid_set")
 
     condition.auto_stabilize = before
     try:

@@ -44,8 +44,9 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--kb", type=float, default=DEFAULT_KB_MM2, help=f"bending stiffness in mm^2 [{DEFAULT_KB_MM2}]")
     p.add_argument(
         "--stabilize", default="off",
-        help="remove rigid head motion: 'off', 'auto' (find stable markers), 'consensus' (no head band: "
-             "per frame, the pose most markers agree on) or comma-separated labels [off]",
+        help="remove rigid head motion: 'off', 'auto' (a head band when there is one, else the pose most "
+             "markers agree on per frame, nothing on a still head), 'consensus' (that pose always) or "
+             "comma-separated labels [off]",
     )
     p.add_argument("--no-smooth", action="store_true", help="skip the spatio-temporal bilateral filter")
     p.add_argument("--temporal-sigma", default="auto", type=_temporal_sigma,

@@ -87,7 +87,9 @@ def test_skin_head_pose_chooses_between_the_consensus_and_the_rigid_set() -> Non
                                 head_pivot="neck", head_motion="turns")
     P = fill_gaps(case.markers.positions, rate=case.markers.rate).positions
     start = stabilize_head(P)
-    for choice, expected in (("rigid_set", start), ("consensus", consensus_stabilize(P, start=start))):
+    consensus = consensus_stabilize(P, start=start)
+    assert np.abs(consensus.rotations - start.rotations).max() > 1e-3  # the two poses differ
+    for choice, expected in (("rigid_set", start), ("consensus", consensus)):
         out = condition_take(case.markers, stabilize=True, smooth=False, head_motion_sigma_s=0.0,
                              skin_head_pose=choice)
         np.testing.assert_allclose(out.head_rotations, expected.rotations, atol=1e-12)

@@ -6,7 +6,7 @@ import igl
 import numpy as np
 import pytest
 
-from facecap.errors import InputError
+from facecap.errors import MeshError
 from facecap.mesh import facing_outward
 
 
@@ -49,7 +49,11 @@ def test_a_flat_patch_cannot_tell() -> None:
 
 
 def test_bad_input() -> None:
-    with pytest.raises(InputError, match="no area"):
+    with pytest.raises(MeshError, match="no area"):
         facing_outward(np.zeros((3, 3)), np.array([[0, 1, 2]]))
-    with pytest.raises(InputError, match="expected"):
+    with pytest.raises(MeshError, match="expected"):
         facing_outward(np.zeros((3, 2)), np.array([[0, 1, 2]]))
+    with pytest.raises(MeshError, match="out of range"):
+        facing_outward(np.eye(3), np.array([[0, 1, -1]]))
+    with pytest.raises(MeshError):
+        facing_outward(np.array([[0.0, 0, 0], [1, 0, 0], [0, np.nan, 0]]), np.array([[0, 1, 2]]))

@@ -89,10 +89,10 @@ def condition_take(
     rest_frame : int, default 0
         The frame stabilisation aligns every frame to.
     stabilize : bool, 'consensus' or sequence of str, default False
-        ``True``: find the stable markers automatically (:func:`auto_stabilize`);
-        ``'consensus'``: per frame, the rigid motion most markers agree on
-        (:func:`consensus_stabilize`, for takes without a head band); labels:
-        use those.
+        ``True``: a rigid head band among ``preferred_stable`` when there is
+        one, else the consensus of the skin markers, or nothing on a still
+        head (:func:`auto_stabilize`); ``'consensus'``: that consensus
+        (:func:`consensus_stabilize`) always; labels: use those markers.
     smooth : bool, default True
         Apply the spatio-temporal bilateral filter.
     preferred_stable : sequence of str

@@ -133,13 +133,15 @@ def consensus_stabilize(
     ``p_k = 1 / (1 + (q_k / s_p)^2)`` (``s_p`` = ``motion_scale_mm``, default
     ``s``), ``q_k`` the 90th percentile of the
     marker's distance from its rest position after ``start``'s
-    stabilisation: a marker the expressions move by more than the noise
-    scale counts little in every frame, so that the markers that carry a
-    frame are those that stay still over the take. (The prior's scale was
-    2 mm until 2026-12-04: on four tuned takes without a head band, three
-    turning about the neck, the median rotation error fell from 0.09-0.18
+    stabilisation (in later rounds, the current consensus's): a marker the
+    expressions move by more than the noise scale counts little in every
+    frame, so that the markers that carry a frame are those that stay still
+    over the take. (Until 2026-12-04 the prior's scale was 2 mm and it was
+    re-estimated in 3 rounds: on four tuned takes without a head band, three
+    turning about the neck, the median rotation error went from 0.09-0.18
     to 0.10-0.15 degrees and the worst 5 % from 0.24-1.42 to 0.21-0.95;
-    ``benchmarks/RESULTS.md``.) Each step is a weighted Kabsch fit
+    ``benchmarks/RESULTS.md``. ``--stabilize consensus`` and plans that
+    recorded it use the new defaults.) Each step is a weighted Kabsch fit
     (:func:`~facecap.markers.rigid_fit.rigid_fit`), batched over frames. It
     starts from :func:`~facecap.markers.stabilize_head.stabilize_head`'s most
     rigid set, which is within a degree or so of the truth, so the

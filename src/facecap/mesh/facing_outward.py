@@ -5,8 +5,9 @@ from __future__ import annotations
 import igl
 import numpy as np
 
-from ..errors import InputError
+from ..errors import MeshError
 from ..typing import FloatArray, IntArray
+from ..validate import as_faces, as_vertices
 
 __all__ = ["facing_outward"]
 
@@ -30,8 +31,9 @@ def facing_outward(vertices: FloatArray, faces: IntArray) -> float:
 
     Raises
     ------
-    InputError
-        If the arrays are not (n, 3) and (f, 3), or the surface has no area.
+    MeshError
+        If the arrays are not (n, 3) finite vertices and (f, 3) faces indexing
+        them, or the surface has no area.
 
     Notes
     -----
@@ -53,14 +55,12 @@ def facing_outward(vertices: FloatArray, faces: IntArray) -> float:
     >>> round(facing_outward(V, F), 4), round(facing_outward(V, F[:, ::-1]), 4)  # an octahedron: 1/sqrt(3)
     (0.5774, -0.5774)
     """
-    V = np.ascontiguousarray(vertices, dtype=np.float64)
-    F = np.ascontiguousarray(faces, dtype=np.int64)
-    if V.ndim != 2 or V.shape[1] != 3 or F.ndim != 2 or F.shape[1] != 3:
-        raise InputError(f"facing_outward: expected (n, 3) vertices and (f, 3) faces, got {V.shape} and {F.shape}")
+    V = as_vertices(vertices, name="vertices")
+    F = as_faces(faces, V.shape[0], name="faces")
     area = igl.doublearea(V, F) / 2.0
     total = float(area.sum())
     if not total > 0:
-        raise InputError("facing_outward: the surface has no area")
+        raise MeshError("facing_outward: the surface has no area")
     normals = np.nan_to_num(igl.per_face_normals(V, F, np.zeros(3)))
     centres = V[F].mean(axis=1)
     centroid = area @ centres / total

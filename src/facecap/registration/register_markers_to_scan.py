@@ -80,19 +80,26 @@ class MarkerRegistration(NamedTuple):
 
 
 def _off_skin(X: FloatArray, rigid: IcpResult, surface: _Surface, offset: float, max_residual_mm: float) -> BoolArray:
-    """Markers that land, under ``rigid``, more than ``max_residual_mm`` (or 3 median residuals) off the skin."""
+    """Markers that land, under ``rigid``, more than ``max_residual_mm`` (or 3 median residuals) off the skin.
+
+    The height is measured on either side of the triangles (``|n . (y - c)| - offset``), so the test
+    does not depend on the scan's winding. Nothing is flagged when fewer than 4 markers would be left
+    on the scan (off its rim) to fit a pose.
+    """
     finite = np.all(np.isfinite(X), axis=1)
     Y = X[finite] @ rigid.rotation.T + rigid.translation
     sq, n, C, on_rim = surface.closest(Y)
     residual = np.abs(np.abs(np.einsum("kd,kd->k", Y - C, n)) - offset)
-    inside = ~on_rim
+    inside = ~on_rim & np.isfinite(residual)
+    none = np.zeros(X.shape[0], dtype=bool)
     if inside.sum() < 4:
-        return np.zeros(X.shape[0], dtype=bool)
+        return none
     limit = max(max_residual_mm, 3.0 * float(np.median(residual[inside])))
-    off = np.zeros(X.shape[0], dtype=bool)
-    off[finite] = inside & (residual > limit)
-    if finite.sum() - off.sum() < 4:  # keep enough to fit a pose
-        return np.zeros(X.shape[0], dtype=bool)
+    far = inside & (residual > limit)
+    if (inside & ~far).sum() < 4:
+        return none
+    off = none.copy()
+    off[finite] = far
     return off
 
 
@@ -168,8 +175,8 @@ def register_markers_to_scan(
     marker_offset_mm : float, default 0.0
         Height of the marker centres above the skin (half the marker
         diameter plus the base), mm. The paper treats the markers as on the
-        skin (0); with a positive offset both sides of the scan are tried
-        and the better fit tells whether its normals are flipped.
+        skin (0); with a positive offset the scan's shape tells which side
+        of its triangles is outside (see Notes).
     trim : float, default 0.9
         Fraction of the usable markers kept as inliers each iteration.
     max_iterations : int, default 50
@@ -190,7 +197,10 @@ def register_markers_to_scan(
         1 mm displacement costs as much as a 0.1 mm residual).
     max_residual_mm : float, default 2.0
         A marker whose distance to the scan differs from the offset by more
-        than this, after registration, is unmatched.
+        than this, after registration, is unmatched. The rigid fit is also
+        run a second time without the markers that the first one leaves
+        further off the skin than this (or three median residuals): a head
+        band's markers, which a plan's frames carry along.
     tolerance_mm : float, default 1e-4
         Convergence: no marker moved further than this in an iteration, mm.
     refine_rigid : bool, default True
@@ -314,19 +324,19 @@ def register_markers_to_scan(
     surface = _Surface(V, F, reject_boundary=True)
     options = dict(method="point_to_plane", max_iterations=int(max_iterations), trim=float(trim),
                    tolerance_mm=tolerance_mm)
-    rigid = _solve(X0, surface, init, offset_mm=offset, **options)
+    winding = _winding(V, F) if offset > 0 else 1
+    sign = -1.0 if winding < 0 else 1.0
+    rigid = _solve(X0, surface, init, offset_mm=sign * offset, **options)
     off_skin = _off_skin(X0, rigid, surface, offset, max_residual_mm)
+    X_fit = np.where(off_skin[:, None], np.nan, X0)
     if off_skin.any():
         # Markers off the skin (a head band, a marker on the hair) that the trimming keeps pull the
         # pose: with 4 band markers among 49, the rigid RMS was 0.7-2.4 mm against 0.1-0.2 without them
-        rigid = _solve(np.where(off_skin[:, None], np.nan, X0), surface, rigid.matrix, offset_mm=offset, **options)
-    sign = 1.0
-    if offset > 0:
-        winding = _winding(V, F)
-        if winding <= 0:
-            back = _solve(X0, surface, rigid.matrix, offset_mm=-offset, **options)
-            if winding < 0 or back.rms < rigid.rms:
-                rigid, sign = back, -1.0
+        rigid = _solve(X_fit, surface, rigid.matrix, offset_mm=sign * offset, **options)
+    if winding == 0:  # a shape too flat to tell: the side the markers fit better
+        back = _solve(X_fit, surface, rigid.matrix, offset_mm=-offset, **options)
+        if back.rms < rigid.rms:
+            rigid, sign = back, -1.0
     R, t = rigid.rotation, rigid.translation
 
     Xs = X0[seen]
