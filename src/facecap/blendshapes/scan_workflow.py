@@ -59,7 +59,7 @@ def _condition(take: MarkerSequence, conditioning: dict[str, Any]) -> Conditione
         head_motion_sigma_s=float(conditioning.get("head_motion_sigma_s", DEFAULT_HEAD_MOTION_SIGMA_S)),
         # plans from before the cross-validated sigma were filtered at 0.02 s
         temporal_sigma_s=conditioning.get("temporal_sigma_s", 0.02),
-        skin_head_pose=conditioning.get("skin_head_pose", "rigid_set"),
+        skin_head_pose=conditioning.get("skin_head_pose", "rigid_set"),  # unrecorded: a plan from before the consensus
     )
 
 

@@ -116,7 +116,7 @@ def condition_take(
         With ``stabilize=True`` and no rigid head band among
         ``preferred_stable``: the head pose from the consensus of the skin
         markers, or from the most rigid set of them (see
-        :func:`auto_stabilize`).
+        :func:`auto_stabilize`, which checks it).
 
     Returns
     -------
@@ -128,8 +128,6 @@ def condition_take(
         If ``rest_frame`` is outside the take or ``stabilize`` names unknown markers.
     """
     T = markers.n_frames
-    if skin_head_pose not in SKIN_HEAD_POSES:
-        raise MarkerError(f"skin_head_pose: expected one of {SKIN_HEAD_POSES}, got {skin_head_pose!r}")
     if not (0 <= rest_frame < T):
         raise MarkerError(f"--rest-frame {rest_frame} is outside the take (0..{T - 1})", path=markers.source_path)
     index = markers.label_index()
