@@ -118,6 +118,10 @@ def residual_correction(V: np.ndarray, observed: np.ndarray, take: "Take", rows:
     return np.einsum("kn,tkc->tnc", B.astype(np.float64), residual)
 
 
+SOLVER_OPTIONS: dict[str, Any] = {}
+"""``solve_muscle_take(solver_options=...)`` of every muscle run (``--solver-options``)."""
+
+
 def quiet(function: Any, *args: Any, **kwargs: Any) -> Any:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FacecapWarning)
@@ -195,7 +199,8 @@ class Take:
         out = self.work / f"muscles_{tag}"
         shutil.rmtree(out, ignore_errors=True)
         done = quiet(solve_muscle_take, self.model, seq, map_path, out, retarget="warp", stabilize=False,
-                     rest_average_s=0.0, smooth=False, scheduler="synchronous", chunk_frames=seq.n_frames)
+                     rest_average_s=0.0, smooth=False, scheduler="synchronous", chunk_frames=seq.n_frames,
+                     solver_options=SOLVER_OPTIONS)
         V = np.load(out / "vertices.npy").astype(np.float64)
         shutil.rmtree(out, ignore_errors=True)
         return V, done.report
@@ -421,8 +426,11 @@ def main() -> int:
     p.add_argument("--quick", action="store_true", help="AnimFace only, a small model, few frames")
     p.add_argument("--work", default=None, help="keep models here (reused by later runs) [a temporary folder]")
     p.add_argument("--json", default=None)
+    p.add_argument("--solver-options", default="{}",
+                   help='JSON MuscleSolver / MuscleModel options of every muscle run, e.g. \'{"galea": "fixed"}\'')
     p.add_argument("--markdown", default=None)
     args = p.parse_args()
+    SOLVER_OPTIONS.update(json.loads(args.solver_options))
     if args.quick:
         args.tets, args.frames, args.groups, args.group_size, args.window = 2000, 12, 2, 2, 10
         names = ["animface"]
