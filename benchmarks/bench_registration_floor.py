@@ -18,13 +18,14 @@ the blend of the *true* shapes of the same frames with the same kind of weights 
 own floor), and ``animate``'s world error on the same take (the better of ``--stabilize auto`` and
 ``off``, as in ``bench_scan_accuracy.py``), whose half is the blend's bar.
 
-With ``--regularisers`` the template is also registered with other smoothness priors on its
-displacement ``u = d - s``, to see whether eq. 7's Laplacian-detail term is what limits the
-correspondence along the skin: ``harmonic`` (``u^T L u``), ``biharmonic`` (``u^T L M^-1 L u``),
-``triharmonic`` (``u^T L M^-1 L M^-1 L u``), each scaled to eq. 7's diagonal, and ``arap``
-(as-rigid-as-possible, Sorkine and Alexa 2007: local rotations and a global solve, five of each
-per closest-point iteration). The split of each basis's error across and along the skin is printed
-for all.
+With ``--regularisers`` the template is also registered with other smoothness priors, to see
+whether eq. 7's Laplacian-detail term is what limits the correspondence along the skin: on the
+displacement ``u = d - s``, ``harmonic`` (``u^T L u``), ``biharmonic`` (``u^T L M^-1 L u``) and
+``triharmonic`` (``u^T L M^-1 L M^-1 L u``); on the deformation, ``arap`` (as-rigid-as-possible,
+Sorkine and Alexa 2007: local rotations and a global solve, five of each per closest-point
+iteration). Each is scaled to eq. 7's mean diagonal, at that one scale; the markers, the rest term
+and the closest points (chosen as eq. 7 chooses them) are the same. The split of each basis's error
+across and along the skin is printed for all.
 
 Usage::
 
@@ -75,12 +76,13 @@ def across_along(X: np.ndarray, truth: np.ndarray, faces: np.ndarray) -> tuple[f
 
 
 def _closest_points(D: np.ndarray, F: np.ndarray, scan_V: np.ndarray, scan_F: np.ndarray,
-                    scan_normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """eq. 7's closest points and which of them count (within 5 mm, normals within 20 degrees)."""
+                    scan_normals: np.ndarray, on_rim: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """eq. 7's closest points and which of them count, as the package's eq. 7 decides it: within 5 mm,
+    normals within 20 degrees, not on a triangle touching the scan's rim."""
     sq, tri, cp = igl.point_mesh_squared_distance(D, scan_V, scan_F)
     smooth = interpolated_normals(cp, scan_F[tri], scan_V, scan_normals)
     agree = np.einsum("ij,ij->i", igl.per_vertex_normals(D, F), smooth) >= np.cos(np.deg2rad(20.0))
-    return cp, (np.sqrt(sq) <= 5.0) & agree
+    return cp, (np.sqrt(sq) <= 5.0) & agree & ~on_rim[tri]
 
 
 def register_with_prior(S: np.ndarray, F: np.ndarray, marker_vertices: np.ndarray, targets: np.ndarray,
@@ -92,22 +94,28 @@ def register_with_prior(S: np.ndarray, F: np.ndarray, marker_vertices: np.ndarra
     C = sp.csr_matrix((np.ones(marker_vertices.size), (np.arange(marker_vertices.size), marker_vertices)),
                       shape=(marker_vertices.size, n))
     scan_normals = igl.per_vertex_normals(scan.vertices, scan.faces)
+    rim_vertex = np.zeros(scan.n_vertices, dtype=bool)
+    rim_vertex[np.unique(igl.boundary_facets(scan.faces)[0])] = True
+    on_rim = rim_vertex[scan.faces].any(axis=1)
     fixed = MARKER_WEIGHT * (C.T @ C) + DEFAULT_REST_WEIGHT * sp.eye(n)
     fixed_rhs = MARKER_WEIGHT * (C.T @ targets) + DEFAULT_REST_WEIGHT * S
     if prior != "arap":
-        Q = {"harmonic": L, "biharmonic": L.T @ Minv @ L, "triharmonic": L.T @ Minv @ L @ Minv @ L}[prior]
+        Q = L if prior == "harmonic" else L.T @ Minv @ L if prior == "biharmonic" else L.T @ Minv @ L @ Minv @ L
         Q = Q * (LtL.diagonal().mean() / Q.diagonal().mean())
         D = SpdFactor((Q + fixed).tocsr()).solve(Q @ S + fixed_rhs)
         for w3 in DEFAULT_CLOSEST_POINT_WEIGHTS:
-            cp, ok = _closest_points(D, F, scan.vertices, scan.faces, scan_normals)
+            cp, ok = _closest_points(D, F, scan.vertices, scan.faces, scan_normals, on_rim)
             w = np.where(ok, w3, 0.0)
             D = SpdFactor((Q + fixed + sp.diags(w)).tocsr()).solve(Q @ S + fixed_rhs + w[:, None] * cp)
         return D
-    # as-rigid-as-possible: spokes with clamped cotangent weights, per-vertex rotations
+    # as-rigid-as-possible: spokes with cotangent weights (the non-positive ones, about a sixth of the
+    # ICT mesh's edges, clamped to 1e-6), per-vertex rotations; scaled to eq. 7's diagonal as the others
     E = igl.edges(F)
     w_edge = np.maximum(-np.asarray(ops.L[E[:, 0], E[:, 1]]).ravel(), 1e-6)
     W = sp.csr_matrix((np.r_[w_edge, w_edge], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n))
     K = (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
+    scale = LtL.diagonal().mean() / K.diagonal().mean()
+    K, w_edge = K * scale, w_edge * scale
     rest_edges = S[E[:, 0]] - S[E[:, 1]]
 
     def rotated_edges(D: np.ndarray) -> np.ndarray:
@@ -129,7 +137,7 @@ def register_with_prior(S: np.ndarray, F: np.ndarray, marker_vertices: np.ndarra
     for _ in range(5):
         D = factor.solve(rotated_edges(D) + fixed_rhs)
     for w3 in DEFAULT_CLOSEST_POINT_WEIGHTS:
-        cp, ok = _closest_points(D, F, scan.vertices, scan.faces, scan_normals)
+        cp, ok = _closest_points(D, F, scan.vertices, scan.faces, scan_normals, on_rim)
         w = np.where(ok, w3, 0.0)
         factor = SpdFactor((K + fixed + sp.diags(w)).tocsr())
         for _ in range(5):
