@@ -23,6 +23,7 @@ Usage::
     python benchmarks/bench_muscle_reach.py                            # default_0 and studio_a_real
     python benchmarks/bench_muscle_reach.py --cases tuned_speech --points 600
     python benchmarks/bench_muscle_reach.py --solver-options '{"muscle_strength": ...}'
+    python benchmarks/bench_muscle_reach.py --jaw rotational            # the jaw opening along its arc
 
 The anatomy is ``build_anatomy(scan, n_tets=--tets)``, kept under ``--work`` for later runs (fTetWild
 meshes differ from run to run, so compare options on one kept model).
@@ -63,9 +64,9 @@ def farthest_points(V: np.ndarray, candidates: np.ndarray, n: int) -> np.ndarray
 
 
 def run_case(name: str, work: Path, *, n_tets: int, points: int, stride: int, n_frames: int, warm_steps: int,
-             options: dict) -> dict:
+             options: dict, jaw: str = "linear") -> dict:
     sample = load_ict_sample()
-    synthetic = make_case(case_by_name(name), n_frames=600)
+    synthetic = make_case(case_by_name(name), n_frames=600, jaw=jaw)
     model = work / f"model_{name}_{n_tets}"
     if not (model / "anatomy.json").is_file():
         build_anatomy(synthetic.scan, n_tets=n_tets).save(model)
@@ -104,7 +105,7 @@ def run_case(name: str, work: Path, *, n_tets: int, points: int, stride: int, n_
         if on.any():
             regions[region] = (float(muscles[:, on].mean()), float(animate[:, on].mean()))
     per_frame = muscles.mean(axis=1)
-    return {"case": name, "points": points, "frames": len(frames), "face_vertices": int(face.size),
+    return {"case": name, "jaw": jaw, "points": points, "frames": len(frames), "face_vertices": int(face.size),
             "markers": int(synthetic.n_face_markers), "muscles_mm": float(muscles.mean()),
             "muscles_worst_frame_mm": float(per_frame.max()), "animate_mm": float(animate.mean()),
             "ratio": float(muscles.mean() / animate.mean()), "regions_mm": regions, "solve_s": solve_s}
@@ -121,21 +122,23 @@ def main_bench() -> None:
     p.add_argument("--tets", type=int, default=20000)
     p.add_argument("--work", default=None, help="keep the models here [a temporary folder]")
     p.add_argument("--solver-options", default="{}", help="JSON MuscleSolver / MuscleModel options")
+    p.add_argument("--jaw", choices=("linear", "rotational"), default="linear",
+                   help="the generator's jaw opening: ICT's straight lines, or along the jaw's arc [linear]")
     args = p.parse_args()
     work = Path(args.work) if args.work else Path(tempfile.mkdtemp(prefix="bench-muscle-reach-"))
     work.mkdir(parents=True, exist_ok=True)
     rows = []
     for name in args.cases:
         row = run_case(name, work, n_tets=args.tets, points=args.points, stride=args.stride, n_frames=args.frames,
-                       warm_steps=args.warm_steps, options=json.loads(args.solver_options))
+                       warm_steps=args.warm_steps, options=json.loads(args.solver_options), jaw=args.jaw)
         rows.append(row)
         print("RESULT", json.dumps(row), flush=True)
     regions = list(rows[0]["regions_mm"])
-    print("| take | markers | points fitted | frames | muscles fitted to the truth (mm) | worst frame | animate from the "
+    print("| take | jaw | markers | points fitted | frames | muscles fitted to the truth (mm) | worst frame | animate from the "
           "take (mm) | ratio | " + " | ".join(f"{r}, muscles / animate" for r in regions) + " |")
-    print("|---" * (8 + len(regions)) + "|")
+    print("|---" * (9 + len(regions)) + "|")
     for r in rows:
-        print(f"| {r['case']} | {r['markers']} | {r['points']} | {r['frames']} | {r['muscles_mm']:.3f} | "
+        print(f"| {r['case']} | {r['jaw']} | {r['markers']} | {r['points']} | {r['frames']} | {r['muscles_mm']:.3f} | "
               f"{r['muscles_worst_frame_mm']:.3f} | {r['animate_mm']:.3f} | **{r['ratio']:.2f}** | "
               + " | ".join(f"{r['regions_mm'][g][0]:.2f} / {r['regions_mm'][g][1]:.2f}" for g in regions) + " |")
 

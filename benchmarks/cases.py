@@ -201,9 +201,12 @@ def case_by_name(name: str) -> Case:
     raise KeyError(f"no case {name!r}; expected one of {[c.name for c in ALL_CASES]}")
 
 
-def make_case(case: Case, *, n_frames: int = 600) -> SyntheticCase:
-    """Generate the take of ``case`` (``generate_performance(**case.generator, curves=case.curves)``)."""
-    kwargs = dict(case.generator)
+def make_case(case: Case, *, n_frames: int = 600, **overrides: Any) -> SyntheticCase:
+    """Generate the take of ``case`` (``generate_performance(**case.generator, curves=case.curves)``).
+
+    ``overrides`` replace or add generator options (``jaw='rotational'``, say) for a variant of the case.
+    """
+    kwargs = {**case.generator, **overrides}
     if "identity" in kwargs and kwargs["identity"] is not None:
         kwargs["identity"] = list(kwargs["identity"])
     return generate_performance(n_frames=n_frames, curves=case.curves, **kwargs)

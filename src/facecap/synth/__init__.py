@@ -7,7 +7,10 @@ In the order a user meets them:
 - :func:`generate_performance` (``generate_performance.py``): a take with
   dense ground truth, as a :class:`SyntheticCase`; :func:`named_curves` picks
   one of the :data:`CURVE_GENERATORS`, :data:`HEAD_PIVOTS_MM` are the head
-  pivots, :func:`vertex_normals_at` is the normal helper it uses.
+  pivots, :func:`vertex_normals_at` is the normal helper it uses;
+  :func:`rotational_jaw_correction`, :func:`fit_jaw_screw`, :class:`JawScrew`,
+  :data:`ICT_JAW_SCREW`, :data:`JAW_MODES` (``rotational_jaw.py``) make its ``jaw='rotational'``
+  (the jaw opening along its arc instead of the blendshape's straight lines).
 - The weight curves it can drive the face with:
   :func:`smooth_expression_curves`, :data:`EXPRESSION_PRESETS`
   (``expression_curves.py``), smooth expressions;
@@ -61,6 +64,7 @@ from .capture_colors import capture_colors, srgb_decode, srgb_encode
 from .ict_sample import IctSample, bundled_path, load_ict_sample
 from .marker_layout import animface_marker_map, boundary_vertices, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, RealCurveFit, load_real_curve_fit, real_motion_curves
+from .rotational_jaw import ICT_JAW_SCREW, JAW_MODES, JawScrew, fit_jaw_screw, rotational_jaw_correction
 from .scan_expression import ScannedExpression, scan_expression
 from .skin_albedo import BASE_SKIN_TONE, SkinRegions, skin_albedo
 from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
@@ -85,6 +89,11 @@ __all__ = [
     "CURVE_GENERATORS",
     "HEAD_PIVOTS_MM",
     "vertex_normals_at",
+    "rotational_jaw_correction",
+    "fit_jaw_screw",
+    "JawScrew",
+    "ICT_JAW_SCREW",
+    "JAW_MODES",
     "smooth_expression_curves",
     "EXPRESSION_PRESETS",
     "speech_expression_curves",

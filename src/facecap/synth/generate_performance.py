@@ -18,6 +18,7 @@ from .expression_curves import _smoothstep, smooth_expression_curves
 from .ict_sample import IctSample, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, real_motion_curves
+from .rotational_jaw import ICT_JAW_SCREW, JAW_MODES, JAW_SHAPE, rotational_jaw_correction
 from .speech_curves import speech_expression_curves
 
 __all__ = ["CURVE_GENERATORS", "HEAD_PIVOTS_MM", "SyntheticCase", "generate_performance", "named_curves",
@@ -373,6 +374,7 @@ def generate_performance(
     mocap_frame: Any = None,
     seed: int = 0,
     sample: IctSample | None = None,
+    jaw: str = "linear",
 ) -> SyntheticCase:
     """Generate a facial mocap take on the ICT face with dense ground truth.
 
@@ -446,6 +448,12 @@ def generate_performance(
         ``gap_fraction`` changes nothing else.
     sample : IctSample, optional
         Default: :func:`load_ict_sample`.
+    jaw : {'linear', 'rotational'}, default 'linear'
+        How ``jawOpen`` blends. 'linear': the blendshape's straight lines, as ICT defines it (at
+        half weight the jaw is the chord of its 25 degree rotation, about 2 mm short at the chin).
+        'rotational': the part of each vertex's displacement that the jaw's rotation explains is
+        taken along the arc (:mod:`facecap.synth.rotational_jaw`); full weight is ICT's shape
+        either way.
 
     Returns
     -------
@@ -495,6 +503,8 @@ def generate_performance(
         raise InputError(f"head_pivot: expected one of {tuple(HEAD_PIVOTS_MM)}, got {head_pivot!r}")
     if head_motion not in HEAD_MOTIONS:
         raise InputError(f"head_motion: expected one of {HEAD_MOTIONS}, got {head_motion!r}")
+    if jaw not in JAW_MODES:
+        raise InputError(f"jaw: expected one of {JAW_MODES}, got {jaw!r}")
     names = sample.expression_names
 
     if curves is None or isinstance(curves, str):
@@ -525,6 +535,9 @@ def generate_performance(
 
     deltas32 = sample.expression_deltas.astype(np.float32)
     truth = V0.astype(np.float32)[None] + np.tensordot(W.astype(np.float32), deltas32, axes=1)
+    if jaw == "rotational":
+        k = names.index(JAW_SHAPE)
+        truth += rotational_jaw_correction(V0, sample.expression_deltas[k], W[:, k], ICT_JAW_SCREW).astype(np.float32)
 
     skin = truth[:, mv].astype(np.float64)
     face_points = skin + offset * vertex_normals_at(truth, F, mv) if offset > 0 else skin
