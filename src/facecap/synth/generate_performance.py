@@ -57,7 +57,8 @@ class SyntheticCase:
         Face marker label -> scan vertex (what a user picks by hand).
     truth_vertices : (T, n, 3) float32 array, mm
         The dense expression in the scan's frame, without head motion:
-        ``scan + weights[t] @ expression_deltas``.
+        ``scan + weights[t] @ expression_deltas``, plus
+        :func:`~facecap.synth.rotational_jaw_correction` when ``jaw`` is 'rotational'.
     head_pose : (T, 4, 4) float64 array
         Rigid head motion in scan coordinates (mm): the face at frame t is
         ``head_pose[t]`` applied to ``truth_vertices[t]``. ``head_pose[0]`` is
@@ -72,6 +73,8 @@ class SyntheticCase:
         The markers before noise and gaps, same columns as ``markers``.
     headband_points : (H, 3) float64 array, mm
         The head-band markers in the scan's frame (they move with ``head_pose`` only).
+    jaw : {'linear', 'rotational'}
+        How ``jawOpen`` was blended (:func:`generate_performance`).
     """
 
     scan: Mesh
@@ -84,6 +87,7 @@ class SyntheticCase:
     marker_vertices: IntArray
     noiseless_markers: FloatArray
     headband_points: FloatArray
+    jaw: str = "linear"
 
     @property
     def n_face_markers(self) -> int:
@@ -379,7 +383,8 @@ def generate_performance(
     """Generate a facial mocap take on the ICT face with dense ground truth.
 
     The expression is ``truth[t] = scan + weights[t] @ expression_deltas``
-    (smooth, performance-like curves; frame 0 neutral). Markers sit
+    (smooth, performance-like curves; frame 0 neutral; with ``jaw='rotational'`` the jaw
+    opens along its arc). Markers sit
     ``marker_offset_mm`` above the skin along the vertex normal, move with
     the expression and a smooth rigid head motion, are seen in the mocap
     system's own rigid frame, with Gaussian noise and occlusion gaps, as an
@@ -579,4 +584,5 @@ def generate_performance(
         marker_vertices=mv,
         noiseless_markers=noiseless,
         headband_points=band,
+        jaw=jaw,
     )
