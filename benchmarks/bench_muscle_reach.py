@@ -43,6 +43,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _meshes import farthest_point_markers  # noqa: E402
 from cases import case_by_name, make_case  # noqa: E402
 
 from facecap.anatomy import build_anatomy, load_anatomy  # noqa: E402
@@ -51,16 +52,6 @@ from facecap.errors import FacecapWarning  # noqa: E402
 from facecap.muscles import FOLLOWER_WEIGHT_LIMIT, MuscleSolver  # noqa: E402
 from facecap.report.evaluate_result import result_and_truth_mm  # noqa: E402
 from facecap.synth import load_ict_sample, write_synthetic_case  # noqa: E402
-
-
-def farthest_points(V: np.ndarray, candidates: np.ndarray, n: int) -> np.ndarray:
-    """``n`` of ``candidates`` spread over ``V`` by farthest-point sampling (deterministic: starts at the first)."""
-    chosen = [int(candidates[0])]
-    distance = np.linalg.norm(V[candidates] - V[chosen[0]], axis=1)
-    for _ in range(n - 1):
-        chosen.append(int(candidates[np.argmax(distance)]))
-        distance = np.minimum(distance, np.linalg.norm(V[candidates] - V[chosen[-1]], axis=1))
-    return np.asarray(chosen)
 
 
 def run_case(name: str, work: Path, *, n_tets: int, points: int, stride: int, n_frames: int, warm_steps: int,
@@ -74,7 +65,7 @@ def run_case(name: str, work: Path, *, n_tets: int, points: int, stride: int, n_
     face = np.flatnonzero(np.asarray(anatomy.skin_meshed)
                           & (np.abs(np.asarray(anatomy.skin_weights)).max(axis=1) <= FOLLOWER_WEIGHT_LIMIT))
     V = synthetic.scan.vertices
-    chosen = farthest_points(V, face, points)
+    chosen = face[farthest_point_markers(V[face], points, start=0)]
     frames = np.arange(0, synthetic.truth_vertices.shape[0], stride)[:n_frames]
 
     with warnings.catch_warnings():

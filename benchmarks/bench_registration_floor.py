@@ -42,6 +42,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Callable
 
 import igl
 import numpy as np
@@ -85,40 +86,38 @@ def _closest_points(D: np.ndarray, F: np.ndarray, scan_V: np.ndarray, scan_F: np
     return cp, (np.sqrt(sq) <= 5.0) & agree & ~on_rim[tri]
 
 
-def register_with_prior(S: np.ndarray, F: np.ndarray, marker_vertices: np.ndarray, targets: np.ndarray,
-                        scan: Mesh, prior: str, ops) -> np.ndarray:
-    """eq. 7 with another smoothness prior on the displacement (the same markers, closest points, rest term)."""
+def prior_registration(S: np.ndarray, F: np.ndarray, marker_vertices: np.ndarray, prior: str,
+                       ops) -> Callable[[np.ndarray, Mesh], np.ndarray]:
+    """eq. 7 with another smoothness prior (the same markers, closest points and rest term).
+
+    The prior's matrices are built once; the returned ``register(targets, scan)`` registers the template
+    ``S`` to one scan with its markers at ``targets`` and returns the deformed vertices.
+    """
     n = S.shape[0]
     L, Minv = ops.L.tocsr(), sp.diags(1.0 / ops.mass)
-    LtL = (L.T @ L).tocsr()
+    eq7_diagonal = (L.T @ L).diagonal().mean()
     C = sp.csr_matrix((np.ones(marker_vertices.size), (np.arange(marker_vertices.size), marker_vertices)),
                       shape=(marker_vertices.size, n))
-    scan_normals = igl.per_vertex_normals(scan.vertices, scan.faces)
-    rim_vertex = np.zeros(scan.n_vertices, dtype=bool)
-    rim_vertex[np.unique(igl.boundary_facets(scan.faces)[0])] = True
-    on_rim = rim_vertex[scan.faces].any(axis=1)
     fixed = MARKER_WEIGHT * (C.T @ C) + DEFAULT_REST_WEIGHT * sp.eye(n)
-    fixed_rhs = MARKER_WEIGHT * (C.T @ targets) + DEFAULT_REST_WEIGHT * S
-    if prior != "arap":
+    if prior == "arap":
+        # spokes with cotangent weights (the non-positive ones, about a sixth of the ICT mesh's edges,
+        # clamped to 1e-6), per-vertex rotations
+        E = igl.edges(F)
+        w_edge = np.maximum(-np.asarray(ops.L[E[:, 0], E[:, 1]]).ravel(), 1e-6)
+        W = sp.csr_matrix((np.r_[w_edge, w_edge], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n))
+        Q = (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
+        scale = eq7_diagonal / Q.diagonal().mean()  # scaled to eq. 7's diagonal, as the others
+        Q, w_edge = Q * scale, w_edge * scale
+        rest_edges = S[E[:, 0]] - S[E[:, 1]]
+    else:
         Q = L if prior == "harmonic" else L.T @ Minv @ L if prior == "biharmonic" else L.T @ Minv @ L @ Minv @ L
-        Q = Q * (LtL.diagonal().mean() / Q.diagonal().mean())
-        D = SpdFactor((Q + fixed).tocsr()).solve(Q @ S + fixed_rhs)
-        for w3 in DEFAULT_CLOSEST_POINT_WEIGHTS:
-            cp, ok = _closest_points(D, F, scan.vertices, scan.faces, scan_normals, on_rim)
-            w = np.where(ok, w3, 0.0)
-            D = SpdFactor((Q + fixed + sp.diags(w)).tocsr()).solve(Q @ S + fixed_rhs + w[:, None] * cp)
-        return D
-    # as-rigid-as-possible: spokes with cotangent weights (the non-positive ones, about a sixth of the
-    # ICT mesh's edges, clamped to 1e-6), per-vertex rotations; scaled to eq. 7's diagonal as the others
-    E = igl.edges(F)
-    w_edge = np.maximum(-np.asarray(ops.L[E[:, 0], E[:, 1]]).ravel(), 1e-6)
-    W = sp.csr_matrix((np.r_[w_edge, w_edge], (np.r_[E[:, 0], E[:, 1]], np.r_[E[:, 1], E[:, 0]])), shape=(n, n))
-    K = (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
-    scale = LtL.diagonal().mean() / K.diagonal().mean()
-    K, w_edge = K * scale, w_edge * scale
-    rest_edges = S[E[:, 0]] - S[E[:, 1]]
+        Q = (Q * (eq7_diagonal / Q.diagonal().mean())).tocsr()
+        QS = Q @ S
 
-    def rotated_edges(D: np.ndarray) -> np.ndarray:
+    def prior_rhs(D: np.ndarray) -> np.ndarray:
+        """The prior's right-hand side at the current ``D``: ``Q S``, or ARAP's rotated rest edges."""
+        if prior != "arap":
+            return QS
         cov = np.zeros((n, 3, 3))
         outer = w_edge[:, None, None] * rest_edges[:, :, None] * (D[E[:, 0]] - D[E[:, 1]])[:, None, :]
         np.add.at(cov, E[:, 0], outer)
@@ -132,17 +131,28 @@ def register_with_prior(S: np.ndarray, F: np.ndarray, marker_vertices: np.ndarra
         np.add.at(b, E[:, 1], -pulled)
         return b
 
-    D = S.copy()
-    factor = SpdFactor((K + fixed).tocsr())
-    for _ in range(5):
-        D = factor.solve(rotated_edges(D) + fixed_rhs)
-    for w3 in DEFAULT_CLOSEST_POINT_WEIGHTS:
-        cp, ok = _closest_points(D, F, scan.vertices, scan.faces, scan_normals, on_rim)
-        w = np.where(ok, w3, 0.0)
-        factor = SpdFactor((K + fixed + sp.diags(w)).tocsr())
-        for _ in range(5):
-            D = factor.solve(rotated_edges(D) + fixed_rhs + w[:, None] * cp)
-    return D
+    # ARAP alternates rotations and a global solve, five of each per closest-point iteration
+    inner = 5 if prior == "arap" else 1
+
+    def register(targets: np.ndarray, scan: Mesh) -> np.ndarray:
+        scan_normals = igl.per_vertex_normals(scan.vertices, scan.faces)
+        rim_vertex = np.zeros(scan.n_vertices, dtype=bool)
+        rim_vertex[np.unique(igl.boundary_facets(scan.faces)[0])] = True
+        on_rim = rim_vertex[scan.faces].any(axis=1)
+        fixed_rhs = MARKER_WEIGHT * (C.T @ targets) + DEFAULT_REST_WEIGHT * S
+        D = S.copy()
+        weight, pull = np.zeros(n), np.zeros((n, 3))
+        for w3 in (None, *DEFAULT_CLOSEST_POINT_WEIGHTS):  # first the markers alone, as eq. 7
+            if w3 is not None:
+                cp, ok = _closest_points(D, F, scan.vertices, scan.faces, scan_normals, on_rim)
+                weight = np.where(ok, w3, 0.0)
+                pull = weight[:, None] * cp
+            factor = SpdFactor((Q + fixed + sp.diags(weight)).tocsr())
+            for _ in range(inner):
+                D = factor.solve(prior_rhs(D) + fixed_rhs + pull)
+        return D
+
+    return register
 
 
 def run_case(case, root: Path, *, frames: int, max_scans: int, regularisers: bool) -> dict:
@@ -167,18 +177,16 @@ def run_case(case, root: Path, *, frames: int, max_scans: int, regularisers: boo
     weights = np.tile([1.0, 0.0, 0.0], (mv.size, 1))
     priors = ["eq7"] + (["harmonic", "biharmonic", "triharmonic", "arap"] if regularisers else [])
     ops = laplace_operators(S, F)
+    others = {p: prior_registration(S, F, mv, p, ops) for p in priors[1:]}
     bases = {p: [] for p in priors}
     t = time.perf_counter()
     for f in planned:
         T = truth[f]
         scan = Mesh(T, F)
-        for p in priors:
-            if p == "eq7":
-                D = register_template_to_scan(synthetic.scan, corners, weights, scan, T[mv],
-                                              rest_weight=DEFAULT_REST_WEIGHT).vertices
-            else:
-                D = register_with_prior(S, F, mv, T[mv], scan, p, ops)
-            bases[p].append(D)
+        bases["eq7"].append(register_template_to_scan(synthetic.scan, corners, weights, scan, T[mv],
+                                                      rest_weight=DEFAULT_REST_WEIGHT).vertices)
+        for p, register in others.items():
+            bases[p].append(register(T[mv], scan))
     register_s = time.perf_counter() - t
 
     markers = truth[:, mv].reshape(truth.shape[0], -1).T  # exact skin points, (3M, T)
