@@ -49,13 +49,18 @@ def test_marker_jacobian_matches_finite_differences(anatomy, layout) -> None:
     strongest = active[np.argsort(-np.abs(J[:, :, active]).max(axis=(0, 1)))[:3]]
     columns = list(strongest) + list(range(k, k + 12)) + [k + 12 + i for i in (1, 5, 7, 10)]
     for i in columns:
-        h = 1e-4
+        # A fibre's stiffness jumps where its passive curve starts (the optimal length), so the
+        # equilibrium is only once differentiable there: a central difference whose step carries a
+        # fibre across that point errs by O(h), not O(h^2). At h = 1e-4 that happened on about one
+        # fTetWild mesh in five, on a jaw column, up to 1.4e-3 relative (not shrinking as h^2). At 1e-6 every column agreed within 3e-8 on the 8 meshes tried,
+        # so the bound is now 1e-5 (it was 1e-3).
+        h = 1e-6
         e = np.zeros_like(vec)
         e[i] = h
         markers = [forward_markers(tight.model, tight.embedding, MuscleControls.from_vector(vec + s * e, k),
                                    x0=base.result.positions).markers for s in (1.0, -1.0)]
         fd = (markers[0] - markers[1]) / (2 * h)
-        assert np.abs(fd - J[:, :, i]).max() < 1e-3 * np.abs(J[:, :, i]).max(), i
+        assert np.abs(fd - J[:, :, i]).max() < 1e-5 * np.abs(J[:, :, i]).max(), i
 
 
 def test_noise_free_markers_give_back_the_controls(solver, model) -> None:
