@@ -1,3 +1,5 @@
+import importlib
+
 import numpy as np
 import pytest
 from fem_reference import box_tets, linear_elastic_stiffness
@@ -236,3 +238,38 @@ def test_a_singular_projected_stiffness_is_shifted_until_it_factors(backend):
     assert float(r @ step) > 0  # a descent direction of the energy
     with pytest.raises(SolverError, match="even shifted"):
         solver._shifted_factor(-sp.identity(n, format="csr"))
+
+
+def test_jacobians_come_from_the_shifted_factor_when_the_projected_stiffness_is_refused(monkeypatch):
+    """Where the equilibrium's exact stiffness is not positive definite, the Jacobians use the projected
+    one; where that is singular too (every element round a node flattened: PARDISO's zero pivot, error
+    -4, seen in the demo on one fTetWild mesh), they come from its smallest working shift instead of
+    ending the take. The refusal is simulated on a well-posed block, so the shifted solve can be checked
+    against the unshifted one."""
+    from facecap.deform.factor_spd import SpdFactor
+    from facecap.errors import SolverError
+
+    module = importlib.import_module("facecap.fem.solve_quasistatic")
+    model, X, bottom = _activated_block()
+    solver = QuasistaticSolver(model, exact_jacobians=False)
+    a = np.array([0.7, 0.4])
+    result = solver.solve(a, X[bottom])
+    calls = []
+
+    def refuse_the_first(matrix, **kwargs):
+        calls.append(matrix)
+        if len(calls) == 1:
+            raise SolverError("sparse factorisation failed: simulated zero pivot")
+        return SpdFactor(matrix, **kwargs)
+
+    monkeypatch.setattr(module, "SpdFactor", refuse_the_first)
+    rhs = np.random.default_rng(1).normal(size=(2, model.n_nodes, 3))
+    u = solver.solve_linear(rhs)
+    assert len(calls) == 2 and solver.jacobian_stiffness == "projected"
+    K = model.stiffness(result.positions, a, free_only=True, definiteness_fix=True)
+    shift = calls[1] - K
+    assert 0 < np.abs(shift.diagonal()).max() <= 1.001e-10 * np.abs(K.diagonal()).mean()  # the smallest shift
+    for c in range(2):
+        reference = spsolve(K.tocsc(), rhs[c].reshape(-1)[model.free_dofs])
+        np.testing.assert_allclose(u[c].reshape(-1)[model.free_dofs], reference, rtol=1e-6,
+                                   atol=1e-6 * np.abs(reference).max())

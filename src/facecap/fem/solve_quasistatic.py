@@ -371,7 +371,8 @@ class QuasistaticSolver:
         """The factorised free-node stiffness at the last solution (factored on first use).
 
         The exact stiffness where it is positive definite (see ``exact_jacobians``), else
-        the projected one; ``jacobian_stiffness`` says which.
+        the projected one (shifted as in :meth:`_shifted_factor` where it is singular);
+        ``jacobian_stiffness`` says which.
         """
         if self._state is None or self._positions is None or self._activations is None:
             raise InputError("no solution yet: call solve() first")
@@ -400,7 +401,10 @@ class QuasistaticSolver:
             self._stiffness = self.model.assemble(self._element_stiffness, free_only=True)
             if extra is not None:
                 self._stiffness = (self._stiffness + extra).tocsr()
-            self._factor = SpdFactor(self._stiffness, backend=self.backend)
+            try:
+                self._factor = SpdFactor(self._stiffness, backend=self.backend)
+            except SolverError:  # singular where every element round a node is flattened: see _shifted_factor
+                self._factor = self._shifted_factor(self._stiffness)
             self.jacobian_stiffness = "projected"
         return self._factor
 
