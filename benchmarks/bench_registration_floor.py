@@ -50,7 +50,7 @@ import scipy.sparse as sp
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from cases import HELD_OUT_CASES, TUNED_CASES, case_by_name, make_case  # noqa: E402
+from cases import add_case_options, chosen_cases, make_case  # noqa: E402
 
 from facecap.blendshapes import nnls_weights  # noqa: E402
 from facecap.cli import main  # noqa: E402
@@ -213,14 +213,12 @@ def run_case(case, root: Path, *, frames: int, max_scans: int, regularisers: boo
 
 def main_bench() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", nargs="+", help="case names from cases.py (default: every tuned case)")
-    parser.add_argument("--held-out", action="store_true", help="run the held-out set (report only, never tune)")
+    add_case_options(parser)
     parser.add_argument("--frames", type=int, default=600)
     parser.add_argument("--max-scans", type=int, default=30)
     parser.add_argument("--regularisers", action="store_true", help="also the other smoothness priors")
     args = parser.parse_args()
-    cases = [case_by_name(n) for n in args.cases] if args.cases else list(HELD_OUT_CASES if args.held_out
-                                                                         else TUNED_CASES)
+    cases = chosen_cases(args)
     rows = []
     for case in cases:
         with tempfile.TemporaryDirectory(prefix="facecap_registration_floor_") as tmp:

@@ -49,7 +49,7 @@ from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from cases import HELD_OUT_CASES, TUNED_CASES, case_by_name, make_case, scan_case  # noqa: E402
+from cases import add_case_options, chosen_cases, make_case, scan_case  # noqa: E402
 
 from facecap.cli import main  # noqa: E402
 from facecap.io.conditioned_take import read_conditioned_take  # noqa: E402
@@ -164,8 +164,7 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
 
 def main_bench() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", nargs="+", help="case names from cases.py (default: every tuned case)")
-    parser.add_argument("--held-out", action="store_true", help="run the held-out set (report only, never tune)")
+    add_case_options(parser)
     parser.add_argument("--frames", type=int, default=600)
     parser.add_argument("--scan-vertices", type=int, default=20_000)
     parser.add_argument("--max-scans", type=int, default=30,
@@ -175,8 +174,7 @@ def main_bench() -> None:
                         help="coloured scans, a coloured neutral scan as --template-texture, --color-alignment")
     parser.add_argument("--keep", help="keep each case's folder under this directory")
     args = parser.parse_args()
-    cases = [case_by_name(n) for n in args.cases] if args.cases else list(HELD_OUT_CASES if args.held_out
-                                                                         else TUNED_CASES)
+    cases = chosen_cases(args)
     rows = []
     for case in cases:
         if args.keep:

@@ -37,6 +37,7 @@ Usage::
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
@@ -199,6 +200,19 @@ def case_by_name(name: str) -> Case:
         if case.name == name:
             return case
     raise KeyError(f"no case {name!r}; expected one of {[c.name for c in ALL_CASES]}")
+
+
+def add_case_options(parser: argparse.ArgumentParser) -> None:
+    """``--cases NAME ...`` and ``--held-out``: which takes a benchmark runs (see :func:`chosen_cases`)."""
+    parser.add_argument("--cases", nargs="+", help="case names from cases.py (default: every tuned case)")
+    parser.add_argument("--held-out", action="store_true", help="run the held-out set (report only, never tune)")
+
+
+def chosen_cases(args: argparse.Namespace) -> list[Case]:
+    """The cases named by ``--cases``, else the held-out set with ``--held-out``, else the tuned set."""
+    if args.cases:
+        return [case_by_name(name) for name in args.cases]
+    return list(HELD_OUT_CASES if args.held_out else TUNED_CASES)
 
 
 def make_case(case: Case, *, n_frames: int = 600, **overrides: Any) -> SyntheticCase:
