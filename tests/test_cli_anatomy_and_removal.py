@@ -30,6 +30,15 @@ def test_build_anatomy_writes_a_model_that_loads(tmp_path: Path) -> None:
     V = read_mesh(scan).vertices
     inside = model.skin_inside
     assert np.abs(model.skin_positions()[inside] - V[inside]).max() < 1e-6
+    # the scan it was built from, recorded where it is (the model was written under a temporary name)
+    from recorded_paths import assert_recorded_paths_are_final
+
+    assert json.loads((out / "anatomy.json").read_text())["provenance"]["scan"] == str(scan)
+    assert assert_recorded_paths_are_final(out) >= 1
+    # a second build into the model is refused before the build (a missing scan would be the error otherwise)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    assert main(["-q", "build-anatomy", "--scan", str(tmp_path / "missing.obj"), "--out", str(out)]) == 2
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
 
 
 def test_remove_wrinkles_changes_the_region_only_and_refuses_a_bad_region(tmp_path: Path, capsys) -> None:
@@ -51,3 +60,12 @@ def test_remove_wrinkles_changes_the_region_only_and_refuses_a_bad_region(tmp_pa
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "region.json" in err[0]
     assert not (tmp_path / "x.obj").exists()
+    # the output named as the scan itself (or any existing file): refused before any work, unless --overwrite
+    region.write_text(json.dumps(forehead.tolist()))
+    before = scan.read_bytes()
+    assert main(["-q", "remove-wrinkles", "--scan", str(scan), "--region", str(region), "--out", str(scan)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{scan}: exists; pass --overwrite" in err[0] and scan.read_bytes() == before
+    assert main(["-q", "remove-wrinkles", "--scan", str(scan), "--region", str(region), "--out", str(scan),
+                 "--overwrite"]) == 0
+    np.testing.assert_array_equal(read_mesh(scan).vertices, W)

@@ -24,7 +24,7 @@ def workflow(tmp_path_factory):
     return root, case, files, frames, scans
 
 
-def test_plan_register_blend(workflow):
+def test_plan_register_blend(workflow, capsys):
     root, case, files, frames, scans = workflow
     plan = json.loads((root / "plan.json").read_text())
     assert (root / "plan.png").is_file()
@@ -97,6 +97,21 @@ def test_plan_register_blend(workflow):
         reported = np.hypot(quality["tangential_motion_mm"], quality["normal_motion_mm"])
         assert quality["marker_residual_mm"]["mean"] < 1.0
         assert 0.5 * true_motion < reported < 2.0 * true_motion + 0.3, (reported, true_motion)  # + scan noise
+    # every recorded path is final and there (the scans, the take, the bases); a second run of either step into
+    # its folder is refused before its work, in one line, changing nothing
+    from recorded_paths import assert_recorded_paths_are_final
+
+    assert assert_recorded_paths_are_final(root) > 20
+    assert [scan["scan"] for scan in report["scans"]] == [str(s) for s in scans]
+    before = {p: p.stat().st_mtime_ns for folder in ("bases", "blend") for p in (root / folder).rglob("*")}
+    for args, folder in ((["register-scans", "--plan", str(root / "plan.json"), "--markers", str(files.markers),
+                           "--scans", *scans, "--template", str(files.scan)], "bases"),
+                         (["blend", "--bases", str(root / "bases"), "--markers", str(files.markers)], "blend")):
+        capsys.readouterr()
+        assert main([*args, "--out", str(root / folder)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and f"{root / folder}: holds an earlier result" in err[0] and "--overwrite" in err[0]
+    assert {p: p.stat().st_mtime_ns for folder in ("bases", "blend") for p in (root / folder).rglob("*")} == before
 
 
 def test_the_capture_motion_undoes_the_stabilisation_and_the_blends_pose_correction():

@@ -137,7 +137,7 @@ def test_sequence_folder_replaces_an_earlier_sequence_but_not_other_files(tmp_pa
     other = tmp_path / "photos"
     other.mkdir()
     (other / "holiday.jpg").write_bytes(b"keep me")
-    with pytest.raises(InputError, match="refusing to overwrite"):
+    with pytest.raises(InputError, match="never replaces it"):
         write_image_sequence(other, FRAMES_8[:2])
     assert [p.name for p in other.iterdir()] == ["holiday.jpg"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cam0", "photos"]

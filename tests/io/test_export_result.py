@@ -165,3 +165,117 @@ def test_a_missing_optional_writer_stops_the_run_before_it_starts(capture_case, 
     err = capsys.readouterr().err
     assert 'pip install "facecap[alembic]"' in err and "factoring" not in err  # refused before the shell set-up
     assert not (tmp_path / "out").exists()
+
+
+def _read_mdd(path, n_frames, n_vertices) -> np.ndarray:
+    """The frames of an MDD file, read by its layout (big-endian: counts, times, then every frame)."""
+    header = np.fromfile(path, dtype=">i4", count=2)
+    assert header.tolist() == [n_frames, n_vertices]
+    return np.fromfile(path, dtype=">f4", offset=8 + 4 * n_frames).reshape(n_frames, n_vertices, 3)
+
+
+def _read_pc2(path, n_frames, n_vertices) -> np.ndarray:
+    assert path.read_bytes()[:12] == b"POINTCACHE2\0"
+    return np.fromfile(path, dtype="<f4", offset=32).reshape(n_frames, n_vertices, 3)
+
+
+def _files(folder) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_an_export_adds_to_the_result_and_removes_nothing(capture_case, tmp_path, capsys):
+    out = tmp_path / "out"
+    _animate(capture_case, out, "--export", "mdd")
+    (out / "notes.txt").write_text("mine")
+    before = _files(out)
+    # the same export again: refused in one line naming what exists, nothing touched
+    assert main(["export", str(out), "--format", "pc2,mdd"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{out}: performance.mdd exists already; pass --overwrite" in err[0]
+    assert _files(out) == before
+    # a new format beside it: added; the rest mesh both caches share is this result's, so it is no conflict
+    assert main(["-q", "export", str(out), "--format", "pc2"]) == 0
+    after = _files(out)
+    assert {k: v for k, v in after.items() if k in before and k != "performance.json"} == \
+        {k: v for k, v in before.items() if k != "performance.json"}
+    assert set(after) - set(before) == {"performance.pc2"}
+    info = json.loads((out / "performance.json").read_text())
+    assert info["exports"] == ["mdd", "pc2"] and set(info["exports_report"]) == {"mdd", "pc2"}
+    assert info["files"] == {k: len(v) for k, v in after.items() if k != "performance.json"}
+    # a rest mesh that is not this result's is a conflict
+    (out / "performance_rest.obj").write_text("# another mesh\n")
+    assert main(["export", str(out), "--format", "pc2", "--overwrite"]) == 0
+    assert (out / "performance_rest.obj").read_bytes() == before["performance_rest.obj"]
+    (out / "performance_rest.obj").write_text("# another mesh\n")
+    (out / "performance.pc2").unlink()
+    assert main(["export", str(out), "--format", "pc2"]) == 2
+    assert "performance_rest.obj exists already" in capsys.readouterr().err
+    # --overwrite replaces the export's own files, and nothing else
+    assert main(["-q", "export", str(out), "--format", "mdd,pc2", "--overwrite"]) == 0
+    assert (out / "notes.txt").read_text() == "mine" and (out / "performance.mdd").read_bytes() == before["performance.mdd"]
+    # a frame folder is refused too, and with --overwrite replaced whole
+    assert main(["-q", "export", str(out), "--format", "obj"]) == 0
+    assert main(["export", str(out), "--format", "obj"]) == 2
+    assert "obj/ exists already" in capsys.readouterr().err
+    (out / "obj" / "frame_000003.obj").write_text("edited")
+    assert main(["-q", "export", str(out), "--format", "obj", "--overwrite"]) == 0  # facecap's frames: replaced whole
+    assert (out / "obj" / "frame_000003.obj").read_text() != "edited" and len(list((out / "obj").iterdir())) == 40
+    # a folder of that name that is not facecap's frames is never replaced
+    (out / "ply").mkdir()
+    (out / "ply" / "scan_cleaned.ply").write_text("mine")
+    assert main(["export", str(out), "--format", "ply", "--overwrite"]) == 2
+    assert "even with --overwrite" in capsys.readouterr().err and (out / "ply" / "scan_cleaned.ply").exists()
+
+
+def test_export_usd_writes_what_animate_writes(capture_case, tmp_path):
+    from pxr import Usd, UsdGeom
+
+    streamed, exported, compact = tmp_path / "streamed", tmp_path / "exported", tmp_path / "compact"
+    _animate(capture_case, streamed, "--export", "usd")
+    _animate(capture_case, exported)
+    _animate(capture_case, compact, "--no-vertices")
+    assert main(["-q", "export", str(exported), "--format", "usd"]) == 0
+    assert main(["-q", "export", str(compact), "--format", "usd"]) == 0
+    usd_files = {"performance.usdc", "performance_rig.usdc"}
+    assert {p.name for p in streamed.glob("*.usdc")} == {p.name for p in exported.glob("*.usdc")} == usd_files
+    assert {p.name for p in compact.glob("*.usdc")} == {"performance_rig.usdc"}  # as animate --no-vertices does
+    info = json.loads((exported / "performance.json").read_text())
+    assert set(info["exports_report"]["usd"]["files"]) == usd_files and info["exports"] == ["usd"]
+    frames = read_result(exported).frames()
+    for folder in (streamed, exported):
+        stage = Usd.Stage.Open(str(folder / "performance.usdc"))
+        for k in (0, 17, 39):
+            points = np.array(UsdGeom.Mesh(stage.GetPrimAtPath("/Head/Face")).GetPointsAttr().Get(k), np.float32)
+            np.testing.assert_allclose(points, frames[k], atol=1e-4)
+
+
+def test_point_caches_and_alembic_in_the_world_frame_round_trip(capture_case_head_motion, tmp_path):
+    from alembic3d import Abc, AbcGeom
+
+    out = tmp_path / "out"
+    _animate(capture_case_head_motion, out, "--export", "mdd,abc", "--export-frame", "world")
+    result = read_result(out)
+    T, n = result.n_frames, result.n_vertices
+    motion = np.load(out / "head_motion.npy")
+    assert np.abs(motion[:, :3, 3]).max() > 1.0  # the head moves: world and stabilised differ
+    frames = result.frames().astype(np.float64)
+    world = np.einsum("tij,tnj->tni", motion[:, :3, :3], frames) + motion[:, None, :3, 3]  # x_world = R x + t
+    assert main(["-q", "export", str(out), "--format", "pc2,mdd,abc"]) == 0  # the stabilised ones beside them
+    assert main(["-q", "export", str(out), "--format", "pc2", "--export-frame", "world"]) == 0
+    np.testing.assert_allclose(_read_mdd(out / "performance_world.mdd", T, n), world, atol=2e-4)
+    np.testing.assert_allclose(_read_pc2(out / "performance_world.pc2", T, n), world, atol=2e-4)
+    np.testing.assert_array_equal(_read_mdd(out / "performance.mdd", T, n), frames.astype(np.float32))
+    np.testing.assert_array_equal(_read_pc2(out / "performance.pc2", T, n), frames.astype(np.float32))
+    for name, expected, head_moves in (("performance_world.abc", world, False), ("performance.abc", frames, True)):
+        archive = Abc.IArchive(str(out / name))
+        head = AbcGeom.IXform(archive.getTop().getChild("Head"), Abc.WrapExistingFlag.kWrapExisting).getSchema()
+        assert head.isConstantIdentity() != head_moves  # the world file carries no head transform
+        face = AbcGeom.IPolyMesh(archive.getTop().getChild("Head").getChild("Face"),
+                                 Abc.WrapExistingFlag.kWrapExisting).getSchema()
+        for k in (0, 11, T - 1):
+            points = np.asarray(face.getValue(Abc.ISampleSelector(k / result.rate)).getPositions())
+            np.testing.assert_allclose(points, expected[k], atol=2e-4)
+    info = json.loads((out / "performance.json").read_text())
+    assert info["exports"] == ["mdd_world", "abc_world", "pc2", "mdd", "abc", "pc2_world"]
+    assert info["exports_report"]["mdd_world"]["frame"] == "world"
+    assert set(info["exports_report"]["mdd_world"]["files"]) == {"performance_world.mdd", "performance_rest.obj"}

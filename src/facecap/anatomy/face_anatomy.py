@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FileFormatError, InputError
-from ..io._atomic import atomic_path, atomic_write_text
+from ..io._atomic import atomic_path, atomic_write_text, recorded_path, resolve_recorded_path
 from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from .skin_embedding import SkinEmbedding, embedding_matrix
@@ -172,6 +172,11 @@ class FaceAnatomy:
                     polygon_sizes=self.scan_polygon_sizes, polygon_indices=self.scan_polygon_indices,
                     uvs=self.scan_uvs, uv_indices=self.scan_uv_indices, source_path=str(source) if source else None)
 
+    def _provenance_in(self, folder: Path) -> dict[str, Any]:
+        """The provenance as ``anatomy.json`` in ``folder`` records it: the scan's path final, never a staging name."""
+        scan = self.provenance.get("scan")
+        return {**self.provenance, "scan": recorded_path(scan, folder=folder)} if scan else dict(self.provenance)
+
     def save(self, folder: str | os.PathLike[str]) -> Path:
         """Write ``anatomy.npz`` and ``anatomy.json`` into ``folder`` (created if needed).
 
@@ -206,7 +211,7 @@ class FaceAnatomy:
                 "cranium_nodes": int(self.cranium_nodes.size), "mandible_nodes": int(self.mandible_nodes.size),
                 "rim_nodes": int(self.rim_nodes.size), "scan_vertices": int(self.scan_vertices.shape[0]),
             },
-            "provenance": self.provenance,
+            "provenance": self._provenance_in(out),
         }
         atomic_write_text(out / "anatomy.json", json.dumps(meta, indent=2) + "\n")
         return out
@@ -254,7 +259,7 @@ def load_anatomy(folder: str | os.PathLike[str]) -> FaceAnatomy:
     anatomy = FaceAnatomy(
         muscle_names=tuple(meta["muscle_names"]),
         landmark_names=tuple(meta["landmark_names"]),
-        provenance=dict(meta.get("provenance", {})),
+        provenance=_provenance_from(meta.get("provenance", {}), folder),
         **arrays,
     )
     try:
@@ -263,3 +268,10 @@ def load_anatomy(folder: str | os.PathLike[str]) -> FaceAnatomy:
         raise FileFormatError(f"the scan's polygons or UVs do not fit its vertices ({exc})", path=str(npz_path)) from None
     return anatomy
 
+
+def _provenance_from(recorded: dict[str, Any], folder: Path) -> dict[str, Any]:
+    """``anatomy.json``'s provenance with the scan's path as a path again (a relative one is the folder's)."""
+    scan = recorded.get("scan")
+    if not (isinstance(scan, str) and scan):
+        return dict(recorded)
+    return {**recorded, "scan": str(resolve_recorded_path(scan, folder=folder))}

@@ -179,6 +179,7 @@ def write_blended_performance(
     rig_precision: str = "float32",
     export_options: dict[str, Any] | None = None,
     progress: bool = True,
+    overwrite: bool = False,
 ) -> Path:
     """Write ``m_t = c + sum_i w_t,i (d_i - c)`` to an output folder like ``facecap animate`` writes.
 
@@ -231,6 +232,8 @@ def write_blended_performance(
     export_options : dict, optional
         Passed to :func:`facecap.io.export_result`.
     progress : bool, default True
+    overwrite : bool, default False
+        Replace an earlier result in ``out_dir`` (:class:`~facecap.io.PerformanceWriter`).
 
     Returns
     -------
@@ -266,6 +269,7 @@ def write_blended_performance(
         if pose.shape != (T, 4, 4) or not np.all(np.isfinite(pose)):
             raise InputError(f"head_motion: expected finite ({T}, 4, 4) transforms, got {pose.shape}")
     with PerformanceWriter(out_dir, mesh=template, rate=rate, n_frames=T, exports=exports, vertices=write_vertices,
+                           overwrite=overwrite,
                            export_options={"progress": progress, **(export_options or {})}) as writer:
         writer.write_rig(rig, precision=rig_precision)
         if writer.needs_frames:

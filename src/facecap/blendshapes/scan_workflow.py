@@ -19,14 +19,17 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import FacecapWarning, InputError
+from ..io._atomic import check_file_destination, check_folder_destination, recorded_path
 from ..io.conditioned_take import file_sha256, read_conditioned_take, write_conditioned_take
 from ..io.read_markers import read_markers
 from ..io.read_mesh import read_mesh
-from ..io.registered_scans import CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
+from ..io.registered_scans import (BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans,
+                                   write_registered_scans)
 from ..io.scan_plan import read_scan_plan, write_scan_plan
 from ..markers.condition_take import DEFAULT_HEAD_MOTION_SIGMA_S, ConditionedTake, condition_take
 from ..structures import MarkerSequence, Mesh
 from ..units import check_scan_units
+from ..io.write_performance import check_result_destination
 from .reconstruct_performance import blend_weights_with_head_pose, write_blended_performance
 from .select_scan_frames import ScanPlan, select_scan_frames
 
@@ -90,6 +93,7 @@ def plan_scans(
     plot_path: str | Path | None = None,
     marker_unit: str | None = None,
     progress: bool = True,
+    overwrite: bool = False,
 ) -> ScanPlan:
     """Choose the fewest frames to scan (Algorithm 1) and write ``plan.json`` (+ the Fig. 8 plot).
 
@@ -109,15 +113,22 @@ def plan_scans(
         head poses get chosen); ``True`` finds the stable markers.
     smooth : bool, default True
     plot_path : str or Path, optional
-        PNG of the error against the number of scans (Huang 2011, Fig. 8).
+        PNG of the error against the number of scans (Huang 2011, Fig. 8) and of the chosen
+        frames over the take (:func:`~facecap.report.plot_scan_selection`).
     marker_unit : str, optional
         Override the unit the take declares.
     progress : bool, default True
+    overwrite : bool, default False
+        Replace an existing ``plan.json`` (and its ``.conditioned.npz`` and
+        plot); without it they are refused before any work: the scans of a
+        session were shot from a plan, so it is never replaced unasked.
 
     Returns
     -------
     ScanPlan
     """
+    for path in (plan_path, conditioned_take_path(plan_path), *(() if plot_path is None else (plot_path,))):
+        check_file_destination(path, overwrite=overwrite)
     take = read_markers(markers_path, unit=marker_unit)
     if stabilize is True:
         stabilize_setting: str | list[str] = "auto"
@@ -145,17 +156,9 @@ def plan_scans(
                            source_sha256=conditioning["source_sha256"])
     write_scan_plan(plan_path, plan.to_dict(), conditioning=conditioning, source=str(markers_path))
     if plot_path is not None:
-        from ..report import plot_series
+        from ..report.plot_scan_selection import plot_scan_selection
 
-        counts = np.arange(1, len(plan.frames) + 1, dtype=np.float64)
-        plot_series(
-            counts, {"all frames (RMS)": plan.error_after_each,
-                     "worst frame (RMS over its markers; the stopping rule)": plan.worst_frame_after_each,
-                     "tolerance": np.full(counts.size, plan.tolerance_mm)},
-            plot_path, ylabel="marker reconstruction error (mm)", xlabel="number of scanned expressions",
-            title=f"Scans needed for {take.n_frames} frames (tolerance {100 * tolerance:.2g}% of "
-                  f"{plan.diagonal_mm:.0f} mm)",
-        )
+        plot_scan_selection(plan, plot_path)
     return plan
 
 
@@ -174,6 +177,7 @@ def register_planned_scans(
     align_colors: bool = False,
     marker_unit: str | None = None,
     progress: bool = True,
+    overwrite: bool = False,
 ) -> dict[str, Any]:
     """Register one scan per planned frame and write the bases folder.
 
@@ -188,10 +192,14 @@ def register_planned_scans(
     (:func:`facecap.units.check_scan_units`); a given unit they contradict
     stops with an error naming the likely one, ``'auto'`` converts to it.
 
-    Returns the registration report (also in ``bases.json``).
+    An earlier bases folder in ``out_dir`` is replaced only with
+    ``overwrite`` (checked before the registration and again at the end).
+    Returns the registration report (also in ``bases.json``, with every
+    scan's path as recorded there: final and absolute, or relative to the folder).
     """
     from ..registration.register_scans import register_scans
 
+    check_folder_destination(out_dir, marker_file=BASES_MARKER_FILE, overwrite=overwrite)
     take = read_markers(markers_path, unit=marker_unit)
     plan = read_scan_plan(plan_path, n_frames=take.n_frames)
     frames = plan["frames"]
@@ -221,11 +229,15 @@ def register_planned_scans(
     )
     report = {**registered.report, "total_s": time.perf_counter() - t,
               "registration_mm": registered.registration_mm.tolist()}
+    for entry, path in zip(report.get("scans", []), scan_paths):
+        entry["scan"] = recorded_path(path, folder=out_dir)
+    # the plan as the bases saw it; its conditioned take is the one kept in the bases folder
+    plan = {**plan, "markers": recorded_path(markers_path, folder=out_dir),
+            "conditioning": {**conditioning, "conditioned_take": CONDITIONED_TAKE_FILE}}
     write_registered_scans(
         out_dir, template=registered.template, bases=registered.bases, basis_markers=registered.basis_markers,
         marker_labels=list(take.labels), output_from_mocap=registered.output_from_mocap,
-        plan={**plan, "markers": str(markers_path)}, report=report,
-        conditioned=conditioned, rate=take.rate,
+        plan=plan, report=report, conditioned=conditioned, rate=take.rate, overwrite=overwrite,
     )
     return report
 
@@ -241,6 +253,7 @@ def blend_take(
     rig_precision: str = "float32",
     export_options: dict[str, Any] | None = None,
     progress: bool = True,
+    overwrite: bool = False,
 ) -> dict[str, Any]:
     """Rebuild every frame of a take from the bases (eq. 12) and write it like ``facecap animate``.
 
@@ -249,8 +262,10 @@ def blend_take(
     ``bases.npy``, ``markers.npy`` (the conditioned markers in the output frame),
     ``blend_report.json`` (per-frame marker residuals), ``head_motion.npy`` and
     ``correspondence.npz`` (:mod:`facecap.io.mocap_correspondence`: the face back
-    into the capture's frame, for the wrinkle layer's cameras).
+    into the capture's frame, for the wrinkle layer's cameras). An earlier result in
+    ``out_dir`` is replaced only with ``overwrite`` (checked first).
     """
+    check_result_destination(out_dir, overwrite=overwrite)
     folder = read_registered_scans(bases_dir)
     take = read_markers(markers_path, unit=marker_unit)
     labels = folder["marker_labels"]
@@ -302,7 +317,7 @@ def blend_take(
         out_dir, folder["template"], folder["bases"], weights, rate=take.rate,
         output_from_bases=folder["output_from_mocap"], head_motion=head_motion, correspondence=correspondence,
         exports=exports, progress=progress,
-        write_vertices=write_vertices, rig_precision=rig_precision, export_options=export_options,
+        write_vertices=write_vertices, rig_precision=rig_precision, export_options=export_options, overwrite=overwrite,
         metadata={"source_files": {"bases": str(bases_dir), "markers": str(markers_path)},
                   "rest_frame": rest_frame, "planned_frames": frames,
                   "markers": list(labels)},

@@ -57,7 +57,8 @@ def write_image_sequence(folder: str | os.PathLike[str], frames: Iterable[Any], 
         raise InputError(f"name: expected a format string with one field such as 'frame_{{:06d}}', got {name!r}") \
             from None
     total = len(frames) if hasattr(frames, "__len__") else None  # type: ignore[arg-type]
-    with atomic_folder(folder, marker_file=SEQUENCE_FILE) as staging:
+    # a library call that replaces an earlier sequence, as documented (a folder of anything else is refused)
+    with atomic_folder(folder, marker_file=SEQUENCE_FILE, overwrite=True) as staging:
         layout: tuple[tuple[int, ...], np.dtype] | None = None
         count = 0
         with tqdm(total=total, unit="frame", desc="images", disable=not progress, leave=False) as bar:

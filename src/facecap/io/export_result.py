@@ -8,7 +8,7 @@ File names, in the result folder (or ``out_dir``):
 format      file                               what
 ==========  =================================  ======================================================
 ``usd``     ``performance_rig.usdc``           the rig as UsdSkel blend shapes, weights animated (with a rig)
-            ``performance.usdc``               time-sampled points (without a rig, or streamed by the run)
+            ``performance.usdc``               time-sampled points (with ``vertices.npy``, or without a rig)
 ``gltf``    ``performance.glb``                review mesh, morph targets, weights animation (metres)
 ``mdd``     ``performance.mdd``                LightWave/Blender point cache, with ``performance_rest.obj``
 ``pc2``     ``performance.pc2``                Maya/3ds Max/Blender point cache, with ``performance_rest.obj``
@@ -21,13 +21,24 @@ Point caches, Alembic and USD carry the result's unit (the scan's); glTF is in
 metres, its unit. The head motion of a stabilised result is the root's
 animated transform in USD, glTF and Alembic (``/Head``); point caches and
 OBJ/PLY frames hold the stabilised face (a point cache has no transform: the
-head motion stays in ``head_motion.npy``).
+head motion stays in ``head_motion.npy``). ``export_frame='world'`` bakes the
+head motion (``x_world = R_t x + t_t``) into the points of the point caches and
+the Alembic instead, written as ``performance_world.mdd``, ``.pc2``, ``.abc``
+(the file name says which frame it holds; ``/Head`` is then the identity).
+
+An export adds to a folder and never removes what is there: a file it would
+write that exists already is refused (one error naming them all, before
+anything is written) unless ``overwrite`` is given. ``performance_rest.obj``,
+shared by both point caches, is no conflict when it is the same file this
+result writes (an MDD exported after a PC2).
 """
 
 from __future__ import annotations
 
+import filecmp
 import json
 import os
+import tempfile
 import warnings
 from pathlib import Path
 from typing import Any, Iterable
@@ -35,16 +46,26 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import FacecapWarning, InputError
+from ._atomic import ensure_folder
 from .read_result import Result, read_result
 from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, file_sizes
 
-__all__ = ["export_result", "parse_export_formats", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES"]
+__all__ = ["export_result", "parse_export_formats", "export_files", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES",
+           "EXPORT_FRAMES", "WORLD_FRAME_FORMATS"]
 
 DEFAULT_GLTF_TARGETS = 64
 """Morph targets of a glTF review file at most (principal components beyond an exact small rig)."""
 
 DEFAULT_REVIEW_VERTICES = 100_000
 """Vertices of the glTF review mesh at most (decimated by vertex subset beyond)."""
+
+EXPORT_FRAMES = ("stabilized", "world")
+"""Frames the point caches and Alembic can hold: the stabilised face, or the face moved by ``head_motion.npy``."""
+
+WORLD_FRAME_FORMATS = ("mdd", "pc2", "abc")
+"""Exports ``export_frame='world'`` changes (USD and glTF always carry the head motion as the root's transform)."""
+
+_REST_OBJ = "performance_rest.obj"
 
 
 def parse_export_formats(text: str | Iterable[str]) -> list[str]:
@@ -77,11 +98,13 @@ def export_result(
     review_vertices: int = DEFAULT_REVIEW_VERTICES,
     gltf_compress: bool = False,
     usd_shapes: str | int = "auto",
+    export_frame: str = "stabilized",
+    overwrite: bool = False,
     batch_frames: int = 64,
     skip_streamed: bool = False,
     progress: bool = False,
 ) -> dict[str, Any]:
-    """Write ``formats`` of a finished result.
+    """Write ``formats`` of a finished result, adding to the folder and removing nothing.
 
     Parameters
     ----------
@@ -105,6 +128,16 @@ def export_result(
         'auto': exact up to :data:`~facecap.io.write_usd_blendshapes.USD_EXACT_MAX_BYTES`
         of shapes, else :data:`~facecap.io.write_usd_blendshapes.DEFAULT_USD_COMPONENTS`
         principal components (with a notice; the error is in the report).
+    export_frame : {'stabilized', 'world'}, default 'stabilized'
+        What the point caches and Alembic hold (:data:`WORLD_FRAME_FORMATS`):
+        the stabilised face (the head motion, if any, on ``/Head`` in Alembic
+        and in ``head_motion.npy``), or the face in the world,
+        ``x_world = R_t x + t_t`` with ``head_motion.npy``'s ``(T, 4, 4)``,
+        written as ``performance_world.<ext>`` (a result without head motion
+        is in the world already: its frames are written as they are).
+    overwrite : bool, default False
+        Replace files of these exports that exist already; without it they
+        are refused before anything is written.
     batch_frames : int, default 64
         Frames per block read.
     skip_streamed : bool, default False
@@ -114,31 +147,93 @@ def export_result(
     Returns
     -------
     dict
-        Per format: the files written and what the writer reports (e.g. the
-        glTF's principal-component error). Also recorded in the result's
-        ``performance.json`` under ``exports_report`` when ``out_dir`` is the result.
+        Per export (``'mdd'``, or ``'mdd_world'`` for the world frame): the
+        files written and what the writer reports (e.g. the glTF's
+        principal-component error). Also recorded in the result's
+        ``performance.json`` (``exports``, ``exports_report``, ``files``) when
+        ``out_dir`` is the result.
 
     Raises
     ------
     InputError
-        If the folder is not a finished result, a format is unknown, or a writer refuses its input.
+        If the folder is not a finished result, a format or frame is unknown,
+        files of these exports exist and ``overwrite`` is False (one line naming
+        them), the destination cannot be written (the cause), or a writer
+        refuses its input.
     """
     result = result_dir if isinstance(result_dir, Result) else read_result(result_dir)
     wanted = parse_export_formats(formats)
+    if export_frame not in EXPORT_FRAMES:
+        raise InputError(f"--export-frame: expected one of {', '.join(EXPORT_FRAMES)}, got {export_frame!r}")
     target = Path(out_dir) if out_dir is not None else result.path
-    target.mkdir(parents=True, exist_ok=True)
+    planned = {fmt: export_files(result, fmt, export_frame=export_frame, skip_streamed=skip_streamed)
+               for fmt in wanted}
+    planned = {fmt: names for fmt, names in planned.items() if names}
+    existing = [name for name in dict.fromkeys(n for names in planned.values() for n in names)
+                if os.path.lexists(target / name.rstrip("/"))]
+    rest_kept = _REST_OBJ in existing and _same_rest_obj(result, target / _REST_OBJ)
+    if rest_kept:
+        existing.remove(_REST_OBJ)
+    if existing and not overwrite:
+        raise InputError(f"{', '.join(existing)} {'exists' if len(existing) == 1 else 'exist'} already; pass "
+                         "--overwrite to replace (an export never removes what is there)", path=str(target))
+    ensure_folder(target)
     report: dict[str, Any] = {}
-    rest_obj = _rest_obj(result, target) if {"mdd", "pc2"} & set(wanted) else None  # one for both caches
-    for fmt in wanted:
-        if skip_streamed and fmt in STREAMED_FORMATS and not (fmt == "usd" and result.rig is not None):
-            continue
-        writer = _WRITERS[fmt]
-        report[fmt] = writer(result, target, batch_frames=batch_frames, progress=progress,
-                             gltf_targets=gltf_targets, review_vertices=review_vertices, gltf_compress=gltf_compress,
-                             usd_shapes=usd_shapes, rest_obj=rest_obj)
+    rest_obj = None
+    if {"mdd", "pc2"} & set(planned):  # one rest mesh for both caches
+        rest_obj = target / _REST_OBJ if rest_kept else _rest_obj(result, target)
+    for fmt in planned:
+        world = export_frame == "world" and fmt in WORLD_FRAME_FORMATS
+        entry = _WRITERS[fmt](result, target, batch_frames=batch_frames, progress=progress,
+                              gltf_targets=gltf_targets, review_vertices=review_vertices, gltf_compress=gltf_compress,
+                              usd_shapes=usd_shapes, rest_obj=rest_obj, world=world, overwrite=overwrite,
+                              skip_streamed=skip_streamed)
+        if world:
+            entry["frame"] = "world"
+            entry["head_motion"] = ("baked into the points (x_world = R_t x + t_t)" if result.head_motion is not None
+                                    else "none: the result is not stabilised, its frames are the world's")
+        report[f"{fmt}_world" if world else fmt] = entry
     if target == result.path:
         _record(result.path, report)
     return report
+
+
+def export_files(result: Result, fmt: str, *, export_frame: str = "stabilized", skip_streamed: bool = False) -> list[str]:
+    """The files (``'obj/'`` for a folder) that exporting ``fmt`` of ``result`` writes, relative to the destination.
+
+    Parameters
+    ----------
+    result : Result
+    fmt : str
+        One of :data:`~facecap.io.EXPORT_FORMATS`.
+    export_frame : {'stabilized', 'world'}, default 'stabilized'
+    skip_streamed : bool, default False
+        As for :func:`export_result`.
+
+    Returns
+    -------
+    list of str
+        Empty when nothing is written (a streamed format with ``skip_streamed``).
+    """
+    world = "_world" if export_frame == "world" and fmt in WORLD_FRAME_FORMATS else ""
+    if fmt == "usd":
+        names = ["performance_rig.usdc"] if result.rig is not None else []
+        if not skip_streamed and (result.rig is None or result.has_vertices):  # as a run streams it
+            names.append("performance.usdc")
+        return names
+    if fmt in ("obj", "ply"):
+        return [] if skip_streamed else [f"{fmt}/"]
+    if fmt in ("mdd", "pc2"):
+        return [f"performance{world}.{fmt}", _REST_OBJ]
+    return [{"gltf": "performance.glb", "abc": f"performance{world}.abc"}[fmt]]
+
+
+def _same_rest_obj(result: Result, path: Path) -> bool:
+    """Whether ``path`` is byte for byte the rest mesh this result's point caches write (then it is kept)."""
+    if not path.is_file():
+        return False
+    with tempfile.TemporaryDirectory(prefix="facecap-rest-") as scratch:
+        return filecmp.cmp(_rest_obj(result, Path(scratch)), path, shallow=False)
 
 
 def _record(folder: Path, report: dict[str, Any]) -> None:
@@ -158,51 +253,60 @@ def _sizes(*paths: Path) -> dict[str, int]:
 
 
 def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bool, usd_shapes: str | int,
-                **_: Any) -> dict[str, Any]:
+                skip_streamed: bool, **_: Any) -> dict[str, Any]:
+    """``performance_rig.usdc`` from the rig; ``performance.usdc`` (time-sampled points) as a run streams it."""
+    files: dict[str, int] = {}
+    stats: dict[str, Any] = {}
     if result.rig is not None:
-        from .write_usd_blendshapes import DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES, write_usd_blendshapes
+        stats = _export_usd_rig(result, target / "performance_rig.usdc", progress=progress, usd_shapes=usd_shapes)
+        files.update(_sizes(target / "performance_rig.usdc"))
+    if not skip_streamed and (result.rig is None or result.has_vertices):
+        from .write_usd import UsdPerformanceWriter
 
-        rig = result.rig
-        if usd_shapes == "exact":
-            max_shapes = None
-        elif usd_shapes == "auto":
-            too_big = 12 * rig.n_shapes * rig.n_vertices > USD_EXACT_MAX_BYTES
-            max_shapes = DEFAULT_USD_COMPONENTS if too_big else None
-            if too_big:
-                warnings.warn(
-                    f"USD: the exact rig needs {rig.n_shapes} blend shapes of {rig.n_vertices} vertices "
-                    f"({12 * rig.n_shapes * rig.n_vertices / 1e9:.1f} GB); writing its first {max_shapes} principal "
-                    "components instead (error in performance.json; the exact form is rig/, or --usd-shapes exact)",
-                    FacecapWarning, stacklevel=3)
-        else:
-            max_shapes = int(usd_shapes)
-            if max_shapes < 1:
-                raise InputError(f"--usd-shapes: expected 'auto', 'exact' or a positive count, got {usd_shapes!r}")
-        path = target / "performance_rig.usdc"
-        stats = write_usd_blendshapes(path, result.mesh, rig, rate=result.rate, head_motion=result.head_motion,
-                                      max_shapes=max_shapes, progress=progress)
-        return {"files": _sizes(path), **stats}
-    from .write_usd import UsdPerformanceWriter
+        path = target / "performance.usdc"
+        to_mm = np.float32(result.mm_per_unit)
+        pose = None
+        if result.head_motion is not None:
+            pose = result.head_motion.copy()
+            pose[:, :3, 3] *= result.mm_per_unit
+        with UsdPerformanceWriter(path, result.mesh, result.rate, result.n_frames) as usd:
+            for start, block in _progress(result, batch_frames, progress, "USD"):
+                usd.write_frames(start, block * to_mm, head_pose=None if pose is None else pose[start:start + len(block)])
+        files.update(_sizes(path))
+    return {"files": files, **stats}
 
-    path = target / "performance.usdc"
-    to_mm = np.float32(result.mm_per_unit)
-    pose = None
-    if result.head_motion is not None:
-        pose = result.head_motion.copy()
-        pose[:, :3, 3] *= result.mm_per_unit
-    with UsdPerformanceWriter(path, result.mesh, result.rate, result.n_frames) as usd:
-        for start, block in _progress(result, batch_frames, progress, "USD"):
-            usd.write_frames(start, block * to_mm, head_pose=None if pose is None else pose[start:start + len(block)])
-    return {"files": _sizes(path)}
+
+def _export_usd_rig(result: Result, path: Path, *, progress: bool, usd_shapes: str | int) -> dict[str, Any]:
+    from .write_usd_blendshapes import DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES, write_usd_blendshapes
+
+    rig = result.rig
+    if usd_shapes == "exact":
+        max_shapes = None
+    elif usd_shapes == "auto":
+        too_big = 12 * rig.n_shapes * rig.n_vertices > USD_EXACT_MAX_BYTES
+        max_shapes = DEFAULT_USD_COMPONENTS if too_big else None
+        if too_big:
+            warnings.warn(
+                f"USD: the exact rig needs {rig.n_shapes} blend shapes of {rig.n_vertices} vertices "
+                f"({12 * rig.n_shapes * rig.n_vertices / 1e9:.1f} GB); writing its first {max_shapes} principal "
+                "components instead (error in performance.json; the exact form is rig/, or --usd-shapes exact)",
+                FacecapWarning, stacklevel=4)
+    else:
+        max_shapes = int(usd_shapes)
+        if max_shapes < 1:
+            raise InputError(f"--usd-shapes: expected 'auto', 'exact' or a positive count, got {usd_shapes!r}")
+    return write_usd_blendshapes(path, result.mesh, rig, rate=result.rate, head_motion=result.head_motion,
+                                 max_shapes=max_shapes, progress=progress)
 
 
 def _export_frames(fmt: str):
-    def export(result: Result, target: Path, *, batch_frames: int, progress: bool, **_: Any) -> dict[str, Any]:
+    def export(result: Result, target: Path, *, batch_frames: int, progress: bool, overwrite: bool,
+               **_: Any) -> dict[str, Any]:
         from ._atomic import atomic_folder
         from .write_mesh import write_mesh
 
         to_mm = result.mm_per_unit
-        with atomic_folder(target / fmt, marker_file=f"frame_000000.{fmt}") as staging:
+        with atomic_folder(target / fmt, marker_file=f"frame_000000.{fmt}", overwrite=overwrite) as staging:
             for start, block in _progress(result, batch_frames, progress, fmt.upper()):
                 for k in range(block.shape[0]):
                     write_mesh(result.mesh, staging / f"frame_{start + k:06d}.{fmt}", vertices=block[k] * to_mm)
@@ -214,34 +318,38 @@ def _rest_obj(result: Result, target: Path) -> Path:
     """The rest mesh a point cache is applied to, in the result's unit, vertex order kept."""
     from .write_mesh import write_mesh
 
-    path = target / "performance_rest.obj"
+    path = target / _REST_OBJ
     write_mesh(result.mesh, path)
     return path
 
 
-def _export_mdd(result: Result, target: Path, *, batch_frames: int, progress: bool, rest_obj: Path,
+def _export_mdd(result: Result, target: Path, *, batch_frames: int, progress: bool, rest_obj: Path, world: bool,
                 **_: Any) -> dict[str, Any]:
     from .write_point_cache import write_mdd
 
-    path = write_mdd(target / "performance.mdd", _progress(result, batch_frames, progress, "MDD"),
+    path = write_mdd(target / f"performance{'_world' if world else ''}.mdd",
+                     _progress(result, batch_frames, progress, "MDD", world=world),
                      n_frames=result.n_frames, n_vertices=result.n_vertices, rate=result.rate)
     return {"files": _sizes(Path(path), rest_obj)}
 
 
-def _export_pc2(result: Result, target: Path, *, batch_frames: int, progress: bool, rest_obj: Path,
+def _export_pc2(result: Result, target: Path, *, batch_frames: int, progress: bool, rest_obj: Path, world: bool,
                 **_: Any) -> dict[str, Any]:
     from .write_point_cache import write_pc2
 
-    path = write_pc2(target / "performance.pc2", _progress(result, batch_frames, progress, "PC2"),
+    path = write_pc2(target / f"performance{'_world' if world else ''}.pc2",
+                     _progress(result, batch_frames, progress, "PC2", world=world),
                      n_frames=result.n_frames, n_vertices=result.n_vertices, rate=result.rate)
     return {"files": _sizes(Path(path), rest_obj)}
 
 
-def _export_abc(result: Result, target: Path, *, batch_frames: int, progress: bool, **_: Any) -> dict[str, Any]:
+def _export_abc(result: Result, target: Path, *, batch_frames: int, progress: bool, world: bool,
+                **_: Any) -> dict[str, Any]:
     from .write_alembic import write_alembic
 
-    path = write_alembic(target / "performance.abc", result.mesh, _progress(result, batch_frames, progress, "Alembic"),
-                         n_frames=result.n_frames, rate=result.rate, head_motion=result.head_motion)
+    path = write_alembic(target / f"performance{'_world' if world else ''}.abc", result.mesh,
+                         _progress(result, batch_frames, progress, "Alembic", world=world),
+                         n_frames=result.n_frames, rate=result.rate, head_motion=None if world else result.head_motion)
     return {"files": _sizes(Path(path))}
 
 
@@ -255,12 +363,17 @@ def _export_gltf(result: Result, target: Path, *, batch_frames: int, progress: b
     return {"files": _sizes(path), **stats}
 
 
-def _progress(result: Result, batch_frames: int, progress: bool, desc: str):
+def _progress(result: Result, batch_frames: int, progress: bool, desc: str, *, world: bool = False):
+    """The result's frames block by block, in its unit; ``world``: moved by its head motion, ``R_t x + t_t``."""
     from tqdm.auto import tqdm
 
+    motion = result.head_motion if world else None
     bar = tqdm(total=result.n_frames, unit="frame", desc=desc, disable=not progress, leave=False)
     try:
         for start, block in result.blocks(batch_frames):
+            if motion is not None:
+                pose = motion[start:start + block.shape[0]]
+                block = (np.einsum("tij,tnj->tni", pose[:, :3, :3], block) + pose[:, None, :3, 3]).astype(np.float32)
             yield start, block
             bar.update(block.shape[0])
     finally:

@@ -35,6 +35,7 @@ def write_registered_scans(
     report: dict[str, Any],
     conditioned: ConditionedTake | None = None,
     rate: float | None = None,
+    overwrite: bool = False,
 ) -> Path:
     """Write the registered bases folder atomically.
 
@@ -44,9 +45,10 @@ def write_registered_scans(
     ``bases.json`` (marker labels, template unit, the plan and its
     conditioning, the registration report) and, when given, the conditioned
     take (``conditioned_take.npz``, see :mod:`facecap.io.conditioned_take`;
-    ``rate`` is then required).
+    ``rate`` is then required). An earlier bases folder in ``out_dir`` is
+    replaced only with ``overwrite`` (:func:`facecap.io._atomic.atomic_folder`).
     """
-    with atomic_folder(out_dir, marker_file=BASES_MARKER_FILE) as stage:
+    with atomic_folder(out_dir, marker_file=BASES_MARKER_FILE, overwrite=overwrite) as stage:
         write_mesh(template, stage / "template.obj")
         np.save(stage / "bases.npy", np.asarray(bases, dtype=np.float32))
         np.save(stage / "basis_markers.npy", np.asarray(basis_markers, dtype=np.float64))

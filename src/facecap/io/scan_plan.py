@@ -3,18 +3,20 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any
 
 from ..errors import FileFormatError, InputError
-from ._atomic import atomic_write_text
+from ._atomic import atomic_write_text, recorded_path
 
 __all__ = ["write_scan_plan", "read_scan_plan", "PLAN_FORMAT"]
 
 PLAN_FORMAT = "facecap-scan-plan"
 
 
-def write_scan_plan(path: str | Path, plan: dict[str, Any], *, conditioning: dict[str, Any], source: str | None) -> None:
+def write_scan_plan(path: str | Path, plan: dict[str, Any], *, conditioning: dict[str, Any],
+                    source: str | os.PathLike[str] | None) -> None:
     """Write a plan (``ScanPlan.to_dict()``) with the conditioning that produced it.
 
     Parameters
@@ -28,9 +30,12 @@ def write_scan_plan(path: str | Path, plan: dict[str, Any], *, conditioning: dic
     conditioning : dict
         ``rest_frame``, ``stable_markers`` (labels), ``smooth``: what
         ``register-scans`` and ``blend`` must repeat to see the same markers.
-    source : str or None
-        The take the plan was made from.
+    source : str, path-like or None
+        The take the plan was made from; recorded final (absolute, or relative
+        to the plan's folder when inside it: :func:`facecap.io._atomic.recorded_path`).
     """
+    if source is not None:
+        source = recorded_path(source, folder=Path(path).parent)
     content = {"format": PLAN_FORMAT, "version": 1, "markers": source, "conditioning": conditioning, **plan}
     atomic_write_text(path, json.dumps(content, indent=1))
 

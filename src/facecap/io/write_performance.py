@@ -23,7 +23,12 @@ Layout of a finished folder (see ``docs/output_format.md``):
 
 Everything is written into a hidden staging folder beside the destination and
 renamed onto it only when the run finishes, so an interrupted or failed run
-never leaves a folder that looks finished.
+never leaves a folder that looks finished. A destination holding an earlier
+result is refused unless ``overwrite`` (``--overwrite``) is given
+(:func:`facecap.io._atomic.atomic_folder`); a job checks it before its long
+work with :func:`check_result_destination`. Paths ``performance.json`` records
+(``source_files``) are final: relative to the folder when inside it, else
+absolute, never a staging name (:func:`facecap.io._atomic.recorded_path`).
 """
 
 from __future__ import annotations
@@ -40,9 +45,10 @@ from tqdm.auto import tqdm
 from ..errors import InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
-from ._atomic import atomic_folder
+from ._atomic import atomic_folder, check_folder_destination, recorded_path
 
-__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "import_writers", "read_performance_info", "file_sizes"]
+__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "import_writers", "read_performance_info",
+           "file_sizes", "check_result_destination"]
 
 EXPORT_FORMATS = ("usd", "gltf", "mdd", "pc2", "abc", "obj", "ply")
 """Exports ``--export`` accepts besides ``vertices.npy`` and the rig."""
@@ -85,8 +91,9 @@ class PerformanceWriter:
     Parameters
     ----------
     out_dir : str or Path
-        Destination folder. If it exists it must be empty or hold an earlier
-        facecap result (which is replaced only once this run succeeds).
+        Destination folder. If it exists it must be empty, or hold an earlier
+        facecap result and ``overwrite`` be True (it is replaced only once
+        this run succeeds).
     mesh : Mesh
         The scan: topology, UVs and source unit of the output.
     rate : float
@@ -103,6 +110,9 @@ class PerformanceWriter:
         (:meth:`write_rig`), and frames are computed only for streamed exports.
     export_options : dict, optional
         Passed to :func:`facecap.io.export_result` (e.g. ``gltf_targets``).
+    overwrite : bool, default False
+        Replace an earlier result in ``out_dir``; without it one is refused
+        (:class:`~facecap.errors.InputError`), here and again at the rename.
 
     Examples
     --------
@@ -124,6 +134,7 @@ class PerformanceWriter:
         exports: Iterable[str] = (),
         vertices: bool = True,
         export_options: dict[str, Any] | None = None,
+        overwrite: bool = False,
     ) -> None:
         self.out_dir = Path(out_dir)
         self.mesh = mesh
@@ -132,7 +143,7 @@ class PerformanceWriter:
         from .export_result import parse_export_formats  # names and optional packages: one home
 
         self.exports = tuple(parse_export_formats(exports))
-        self._folder = atomic_folder(self.out_dir, marker_file=_MARKER_FILE)
+        self._folder = atomic_folder(self.out_dir, marker_file=_MARKER_FILE, overwrite=overwrite)
         self.staging = self._folder.__enter__()
         self._unit_scale = np.float32(1.0 / mm_per_unit(mesh.source_unit))
         self._npy = (_NpyStream(self.staging / "vertices.npy", (self.n_frames, mesh.n_vertices, 3), np.dtype("<f4"))
@@ -298,6 +309,10 @@ class PerformanceWriter:
         """Where to put an extra file (report, picture) in the staging folder."""
         return self.staging / name
 
+    def record_path(self, path: str | os.PathLike[str]) -> str:
+        """What a file of this folder records for ``path``: final, relative when inside the folder, else absolute."""
+        return recorded_path(path, folder=self.staging)
+
     def finish(self, metadata: dict[str, Any]) -> Path:
         """Write the metadata and the exports made from the frames, and move the folder into place.
 
@@ -310,7 +325,9 @@ class PerformanceWriter:
         ----------
         metadata : dict
             JSON-ready description: source files, parameters, ...; ``rate``,
-            ``units``, ``n_frames`` and ``n_vertices`` are added.
+            ``units``, ``n_frames`` and ``n_vertices`` are added. The paths in
+            ``source_files`` (a path, or a list of them, per name; None kept)
+            are recorded as :meth:`record_path` gives them.
 
         Returns
         -------
@@ -335,10 +352,12 @@ class PerformanceWriter:
             "units": self.mesh.source_unit,
             "n_frames": self.n_frames,
             "n_vertices": self.mesh.n_vertices,
-            "exports": list(self.exports),
+            "exports": self._export_names(),
             "frames_in": (["vertices.npy"] if self._npy is not None else []) + (["rig/"] if self._rig is not None else []),
             **metadata,
         }
+        if isinstance(info.get("source_files"), dict):
+            info["source_files"] = {name: self._recorded(value) for name, value in info["source_files"].items()}
         info_path = self.staging / _MARKER_FILE
         info_path.write_text(json.dumps(info, indent=2, default=_json_default))
         later = [f for f in self.exports if f not in STREAMED_FORMATS or (f == "usd" and self._rig is not None)]
@@ -365,6 +384,21 @@ class PerformanceWriter:
             write_review_page(self.staging / "review.html", glb, title=f"facecap: {self.out_dir.name}",
                               rate=self.rate, n_frames=self.n_frames)
         write_run_report(self.staging)
+
+    def _export_names(self) -> list[str]:
+        """The exports as ``performance.json`` lists them: ``mdd_world`` for a point cache in the world frame."""
+        from .export_result import WORLD_FRAME_FORMATS
+
+        world = self.export_options.get("export_frame", "stabilized") == "world"
+        return [f"{f}_world" if world and f in WORLD_FRAME_FORMATS else f for f in self.exports]
+
+    def _recorded(self, value: Any) -> Any:
+        """A ``source_files`` entry with its paths recorded final (lists entry by entry; None and labels kept)."""
+        if isinstance(value, (list, tuple)):
+            return [self._recorded(v) for v in value]
+        if isinstance(value, (str, os.PathLike)) and str(value):
+            return self.record_path(value)
+        return value
 
     def abort(self) -> None:
         """Discard everything written so far."""
@@ -409,6 +443,20 @@ def import_writers(exports: Iterable[str]) -> None:
         names.extend(_WRITER_MODULES.get(fmt, ()))
     for name in names:
         importlib.import_module(name)
+
+
+def check_result_destination(out_dir: str | os.PathLike[str], *, overwrite: bool = False) -> None:
+    """Refuse, before a job's long work, an ``out_dir`` :class:`PerformanceWriter` would refuse.
+
+    Raises
+    ------
+    InputError
+        One line naming ``out_dir``: an earlier result without ``overwrite``, a
+        file or a non-empty folder of something else (never replaced), or a
+        folder that cannot be created (the cause). See
+        :func:`facecap.io._atomic.check_folder_destination`.
+    """
+    check_folder_destination(out_dir, marker_file=_MARKER_FILE, overwrite=overwrite)
 
 
 def file_sizes(folder: str | os.PathLike[str]) -> dict[str, int]:

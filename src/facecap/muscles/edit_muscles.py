@@ -23,7 +23,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any, Iterable, Literal, NamedTuple, Sequence
+from typing import Any, Iterable, Literal, Mapping, NamedTuple, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -407,6 +407,8 @@ def edit_muscles(
     penetration_tolerance_mm: float = DEFAULT_PENETRATION_TOLERANCE_MM,
     exports: Iterable[str] = (),
     progress: bool = False,
+    export_options: Mapping[str, Any] | None = None,
+    overwrite: bool = False,
 ) -> MuscleEditResult:
     """Edit a ``solve-muscles`` result in muscle space and write the edited result folder.
 
@@ -434,12 +436,14 @@ def edit_muscles(
     sphere_to : (cx, cy, cz), optional
         The sphere's centre at the last frame: it moves linearly from ``sphere``'s centre.
     model_dir : str or path-like, optional
-        The anatomy model folder; default the one ``performance.json`` names. It must be the
-        one the take was solved on (its SHA-256 is checked).
+        The anatomy model folder; default the one ``performance.json`` names (``source_files``:
+        absolute, or relative to the result folder). It must be the one the take was solved on
+        (its SHA-256 is checked).
     penetration_tolerance_mm : float, default 0.05
         See :class:`MuscleEditor`.
-    exports, progress
-        As for :func:`~facecap.muscles.solve_muscle_take`.
+    exports, progress, export_options, overwrite
+        As for :func:`~facecap.muscles.solve_muscle_take` (an earlier result in ``out_dir`` is
+        refused before any work unless ``overwrite``).
 
     Returns
     -------
@@ -455,7 +459,8 @@ def edit_muscles(
     """
     from ..anatomy import load_anatomy
     from ..io.export_result import parse_export_formats
-    from ..io.write_performance import import_writers
+    from ..io._atomic import resolve_recorded_path
+    from ..io.write_performance import check_result_destination, import_writers
     from .muscle_frame_stage import model_folder_sha256
     from .solve_muscle_take import write_muscle_result
 
@@ -490,11 +495,13 @@ def edit_muscles(
     if kind == "interpolate" and int(n_frames) < 2:
         raise InputError(f"n_frames: expected at least 2 (both ends), got {n_frames}")
     exports = parse_export_formats(exports)
+    check_result_destination(out_dir, overwrite=overwrite)
 
     stage(f"reading the result {result_dir}")
     source = _read_source(result_dir)
     info = source.info
-    model_path = Path(model_dir) if model_dir is not None else Path(str(info.get("source_files", {}).get("model", "")))
+    model_path = (Path(model_dir) if model_dir is not None else
+                  resolve_recorded_path(str(info.get("source_files", {}).get("model") or ""), folder=source.folder))
     if not (model_path / "anatomy.json").is_file():
         raise FileFormatError("no anatomy model folder here (give the one the take was solved on: --model)",
                               path=str(model_path))
@@ -606,7 +613,7 @@ def edit_muscles(
     final = write_muscle_result(out_dir, scan, float(info.get("rate", 60.0)), out_frames, anatomy.muscle_names,
                                 arrays, report=report, metadata=metadata, extra_arrays=extra, exports=exports,
                                 progress=progress, timings=timings, started=t_all, write_started=t,
-                                desc="edit-muscles")
+                                desc="edit-muscles", export_options=export_options, overwrite=overwrite)
     return MuscleEditResult(Path(final), n, report)
 
 

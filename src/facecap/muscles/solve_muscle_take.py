@@ -29,6 +29,7 @@ from typing import Any, Iterable, Mapping, NamedTuple
 import numpy as np
 
 from ..errors import CorrespondenceError, FacecapWarning, InputError
+from ..io._atomic import final_path
 from ..markers.rigid_fit import rigid_fit
 from ..validate import as_positive
 
@@ -108,6 +109,8 @@ def solve_muscle_take(
     solver_options: Mapping[str, Any] | None = None,
     progress: bool = False,
     extra_metadata: Mapping[str, Any] | None = None,
+    export_options: Mapping[str, Any] | None = None,
+    overwrite: bool = False,
 ) -> MuscleTakeResult:
     """Solve a take for muscle activations, cranium and jaw, and write the result folder.
 
@@ -167,6 +170,11 @@ def solve_muscle_take(
         A progress line per stage on standard error, and the runner's bar.
     extra_metadata : mapping, optional
         Added to ``performance.json``.
+    export_options : mapping, optional
+        Passed to :func:`facecap.io.export_result` (e.g. ``export_frame``).
+    overwrite : bool, default False
+        Replace an earlier result in ``out_dir``; without it one is refused before any work
+        (:func:`facecap.io.write_performance.check_result_destination`) and again at the end.
 
     Returns
     -------
@@ -197,7 +205,7 @@ def solve_muscle_take(
     from ..io.export_result import parse_export_formats
     from ..io.read_correspondence import Correspondence, read_correspondence
     from ..io.read_markers import read_markers
-    from ..io.write_performance import import_writers
+    from ..io.write_performance import check_result_destination, import_writers
     from ..runner import run_frames
     from ..structures import MarkerSequence
     from .marker_embedding import marker_embedding
@@ -211,6 +219,7 @@ def solve_muscle_take(
             print(f"facecap: {message}", file=sys.stderr, flush=True)
 
     exports = parse_export_formats(exports)
+    check_result_destination(out_dir, overwrite=overwrite)
     if retarget not in ("auto", "rigid", "warp"):
         raise InputError(f"retarget: expected 'auto', 'rigid' or 'warp', got {retarget!r}")
     rest_average_s = as_positive(DEFAULT_REST_AVERAGE_S if rest_average_s is None else rest_average_s,
@@ -262,7 +271,7 @@ def solve_muscle_take(
             raise CorrespondenceError(f"only {int(keep.sum())} markers land on the model {model_dir} (at least "
                                       f"{_MIN_MARKERS} needed); the others are outside the meshed face (ears, scalp, "
                                       "neck, eyes, inner lips)", path=map_name)
-        said.append(f"markers {', '.join(left_out)} land off the model {model_dir} (outside the meshed face: ears, "
+        said.append(f"markers {', '.join(left_out)} land off the model {final_path(model_dir)} (outside the meshed face: ears, "
                     "scalp, neck, eyes, inner lips): left out of the solve")
         labels = tuple(labels[i] for i in np.flatnonzero(keep))
         vertices = vertices[keep]
@@ -359,7 +368,8 @@ def solve_muscle_take(
             extra["head_motion.npy"] = head_pose[first:stop]
         final = write_muscle_result(out_dir, scan, take.rate, np.arange(first, stop), anatomy.muscle_names, result,
                                     report=report, metadata=metadata, extra_arrays=extra, exports=exports,
-                                    progress=progress, timings=timings, started=t_all, write_started=t)
+                                    progress=progress, timings=timings, started=t_all, write_started=t,
+                                    export_options=export_options, overwrite=overwrite)
     finally:
         if own_work:
             shutil.rmtree(work, ignore_errors=True)
@@ -392,17 +402,27 @@ def _write_activations(path: Path, frames: np.ndarray, names: Iterable[str], act
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
-def _plot_activations(path: Path, times: np.ndarray, names: tuple[str, ...], activations: np.ndarray) -> None:
-    """The activations over time: the 8 most active muscles by name, the rest summarised."""
-    from ..report.plot_series import plot_series
+def _plot_activations(path: Path, frames: np.ndarray, rate: float, names: tuple[str, ...], activations: np.ndarray,
+                      report: Mapping[str, Any], metadata: Mapping[str, Any], *, title: str | None = None,
+                      caption: str | None = None) -> None:
+    """``activations.png``: the activations over time, the flagged frames shaded, each frame's largest marker
+    residual against the ``large_residual`` threshold (when the report has residuals: a solve, not an edit).
 
-    A = np.asarray(activations, dtype=np.float64)
-    order = np.argsort(-A.max(axis=0), kind="stable")
-    shown = order[:8]
-    series = {names[i]: A[:, i] for i in shown}
-    if A.shape[1] > shown.size:
-        series[f"the other {A.shape[1] - shown.size} muscles"] = A[:, order[8:]]
-    plot_series(times, series, path, ylabel="activation (0-1)", title="muscle activations")
+    ``report`` and ``metadata`` are ``report.json`` and ``performance.json`` (its solver options); ``title``
+    and ``caption`` replace the default title and add a caption (the demo says what its frames are)."""
+    from ..report.plot_activations import plot_activations
+    from .muscle_solver import FLAG_RESIDUAL_MM
+
+    flags = report.get("flags") or {}
+    flagged = np.array([bool(flags.get(str(int(f)))) for f in frames])
+    residual = (report.get("marker_residual_mm") or {}).get("per_frame_max")
+    if residual is not None:
+        residual = np.array([np.nan if r is None else r for r in residual], dtype=np.float64)
+    solver = ((metadata.get("parameters") or {}).get("solver") or {})
+    threshold = float(solver.get("flag_residual_mm", FLAG_RESIDUAL_MM))
+    plot_activations(frames / rate, activations, names, path, flagged=flagged,
+                     max_residual_mm=residual, flag_residual_mm=threshold if residual is not None else None,
+                     title=title or f"muscle activations, frames {int(frames[0])}-{int(frames[-1])}", caption=caption)
 
 
 def _report(result: Mapping[str, np.ndarray], labels: tuple[str, ...], anatomy: Any, first: int, rest_frame: int,
@@ -453,7 +473,8 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float,
                         metadata: dict[str, Any], extra_arrays: Mapping[str, np.ndarray] | None = None,
                         exports: Iterable[str] = (), progress: bool = False, timings: dict[str, float] | None = None,
                         started: float | None = None, write_started: float | None = None,
-                        desc: str = "solve-muscles") -> Path:
+                        desc: str = "solve-muscles", export_options: Mapping[str, Any] | None = None,
+                        overwrite: bool = False) -> Path:
     """Write a muscle result folder (``solve-muscles``, ``edit-muscles``) in one atomic step.
 
     Parameters
@@ -479,6 +500,10 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float,
         Updated with ``write_s`` (since ``write_started``, default now) and ``total_s`` (since ``started``).
     desc : str
         The progress bar's label.
+    export_options : mapping, optional
+        Passed to :func:`facecap.io.export_result`.
+    overwrite : bool, default False
+        Replace an earlier result in ``out_dir`` (:class:`~facecap.io.PerformanceWriter`).
 
     Returns
     -------
@@ -491,8 +516,8 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float,
     frames = np.asarray(frames, dtype=np.int64).reshape(-1)
     names = tuple(muscle_names)
     timings = {} if timings is None else timings
-    with PerformanceWriter(out_dir, mesh=scan, rate=rate, n_frames=frames.size, exports=exports,
-                           export_options={"progress": progress}) as writer:
+    with PerformanceWriter(out_dir, mesh=scan, rate=rate, n_frames=frames.size, exports=exports, overwrite=overwrite,
+                           export_options={"progress": progress, **(export_options or {})}) as writer:
         skin = arrays["vertices"]
 
         def compute(lo: int, hi: int, out: np.ndarray) -> None:
@@ -504,7 +529,8 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float,
         _write_activations(writer.path(ACTIVATIONS_FILE), frames, names, arrays["activations"])
         _write_npz(writer.path(BONE_TRANSFORMS_FILE), cranium=arrays["cranium"], mandible=arrays["mandible"],
                    jaw_pose=arrays["jaw_pose"], frames=frames)
-        _plot_activations(writer.path("activations.png"), frames / float(rate), names, arrays["activations"])
+        _plot_activations(writer.path("activations.png"), frames, float(rate), names, arrays["activations"], report,
+                          metadata)
         timings["write_s"] = time.perf_counter() - t
         if started is not None:
             timings["total_s"] = time.perf_counter() - started

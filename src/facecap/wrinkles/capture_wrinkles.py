@@ -401,7 +401,8 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
                      scheduler: str | None = "synchronous", n_workers: int = 2, work_dir: Any = None,
                      exports: Sequence[str] = (), chunk_frames: int = 4, anchor: bool = True, edits: Any = None,
                      min_face_in_view: float = MIN_FACE_IN_VIEW, progress: bool = False,
-                     options: Mapping[str, Any] | None = None) -> WrinkleCapture:
+                     options: Mapping[str, Any] | None = None, export_options: Mapping[str, Any] | None = None,
+                     overwrite: bool = False) -> WrinkleCapture:
     """Track, measure and synthesise the painted wrinkles of a take onto its large-scale result.
 
     Parameters
@@ -446,6 +447,11 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     progress : bool, default False
     options : mapping, optional
         More options of :func:`~facecap.wrinkles.synthesize_wrinkles`.
+    export_options : mapping, optional
+        Passed to :func:`facecap.io.export_result` (e.g. ``export_frame``).
+    overwrite : bool, default False
+        Replace an earlier result in ``out_dir``; without it one is refused before any work and
+        again at the end (:class:`~facecap.io.PerformanceWriter`).
 
     Returns
     -------
@@ -461,12 +467,13 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     """
     from ..cameras import open_footage, read_image, synchronize
     from ..io.read_result import read_result
-    from ..io.write_performance import PerformanceWriter
+    from ..io.write_performance import PerformanceWriter, check_result_destination
     from ..runner import run_frames
     from .track_wrinkles import track_wrinkles
 
     timings: dict[str, float] = {}
     start_all = time.perf_counter()
+    check_result_destination(out_dir, overwrite=overwrite)
     result_dir = Path(result_dir)
     result = read_result(result_dir)
     if not (result_dir / "correspondence.npz").is_file():
@@ -552,7 +559,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
         if head_pose is not None:
             head_pose[:, :3, 3] *= mm
         with PerformanceWriter(out_dir, mesh=result.mesh, rate=result.rate, n_frames=result.n_frames,
-                               exports=exports) as writer:
+                               exports=exports, export_options=export_options, overwrite=overwrite) as writer:
             def compute(lo: int, hi: int, out: np.ndarray) -> None:
                 out[:] = result.frames(lo, hi) * np.float32(mm)
                 b, a, w = bracket.before[lo:hi], bracket.after[lo:hi], bracket.weight[lo:hi].astype(np.float32)
@@ -566,8 +573,9 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
                 _wrinkles_document(run, stage, sync), indent=1))
             timings["write_s"] = time.perf_counter() - t
             timings["total_s"] = time.perf_counter() - start_all
-            final = writer.finish({"method": "bickel2007-medium-scale", "large_scale": str(result_dir),
-                                   "footage": footage, "cameras": [c.name for c in cameras],
+            final = writer.finish({"method": "bickel2007-medium-scale", "large_scale": writer.record_path(result_dir),
+                                   "footage": [writer.record_path(f) for f in footage],
+                                   "cameras": [c.name for c in cameras],
                                    "video_rate_hz": float(video_rate_hz), "first_mocap_frame": float(first_mocap_frame),
                                    "depth_scale": opts["depth_scale"], "anchored": bool(anchor),
                                    "markers": list(result.marker_labels) if result.markers is not None else [],
