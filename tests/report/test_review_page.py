@@ -339,15 +339,16 @@ def test_html_report_renders_and_links_to_the_page(browser: object, glb_case: tu
     with open_page(browser, out.as_uri()) as (page, watch):
         page.wait_for_load_state("load")
         text = page.inner_text("body")
-        for figure in ("2.75", "17.45", "1.25", "3.5", "1234", "0.34"):
+        for figure in ("2.75 s", "17.4", "1.25 s", "3.5 s", "1,234 vertices", "0.34 mm"):
             assert figure in text
-        assert f"{residual.max():.4g}" in text
+        assert f"largest {residual.max():.3g} mm" in text
         rows = page.eval_on_selector_all("tr", "rows => rows.map(r => Array.from(r.cells, c => c.textContent))")
-        assert ["regions", "mean_mm", "max_mm"] in rows and ["mouth", "0.3", "0.93"] in rows  # one row per region
-        assert ["nose", "0.34", "mm"] in rows  # the group's unit
+        # a figure facecap does not know is shown under a readable name, nested groups as 'group: name'
+        assert ["Evaluation: regions: mouth: largest", "0.93 mm"] in rows
+        assert ["nose", "0.34", ""] in rows  # the per-marker table
         sizes = page.eval_on_selector_all("img", "imgs => imgs.map(i => [i.alt, i.naturalWidth, i.naturalHeight])")
         assert ["picture.png", 120, 90] in sizes
-        assert any(alt.startswith("plot: marker_residual_mm") and w > 0 for alt, w, _ in sizes)
+        assert any(alt.startswith("plot: The largest marker residual") and w > 0 for alt, w, _ in sizes)
         link = page.locator("a#review-link")
         assert link.get_attribute("href") == "review.html"
         link.click()
