@@ -153,6 +153,13 @@ class MarkerSequence:
         Per-marker subject name split off a ``Subject:Marker`` label (Vicon
         Nexus, OptiTrack Motive), ``''`` for a marker without one; None when
         the file's labels carry no subject.
+    timecode : str or None
+        SMPTE timecode of the first frame as the file states it,
+        ``'HH:MM:SS:FF'`` (``;`` before the frames for drop-frame timecode, a
+        ``.n`` suffix for a subframe); None when the file holds none.
+    capture_start : str or None
+        Date and time the capture started, as the file writes it (QTM
+        ``TIME_STAMP``, Motive ``Capture Start Time``); None when it holds none.
     """
 
     positions: FloatArray
@@ -163,6 +170,8 @@ class MarkerSequence:
     first_frame: int = 0
     residuals: FloatArray | None = field(default=None, repr=False)
     subjects: tuple[str, ...] | None = None
+    timecode: str | None = None
+    capture_start: str | None = None
 
     def __post_init__(self) -> None:
         P = as_marker_positions(self.positions, name="positions")

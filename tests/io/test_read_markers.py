@@ -323,6 +323,67 @@ def test_c3d_subject_prefix_split_only_when_unambiguous(tmp_path):
     assert two.labels == ("Ann:Chin", "Bob:Chin", "Brow") and two.subjects is None
 
 
+def _with_timecode(source, path, **params):
+    """``source`` rewritten by ezc3d with a TIMECODE group holding ``params`` (the layout Vicon writes)."""
+    c = ezc3d.c3d(str(source))
+    for name, value in params.items():
+        c.add_parameter("TIMECODE", name, value)
+    c.write(str(path))
+    return path
+
+
+@pytest.mark.parametrize("params, expected", [
+    ({"FIRST_FRAME": [10, 22, 31, 12], "DROP_FRAMES": [0], "SUBFRAMESPERFRAME": [4]}, "10:22:31:12"),
+    ({"FIRST_FRAME": [1, 0, 0, 2], "DROP_FRAMES": [1]}, "01:00:00;02"),  # drop frame: ';' as SMPTE writes it
+    ({"FIRST_FRAME": [23, 59, 59, 29, 3]}, "23:59:59:29.3"),  # a subframe
+    ({"FIRST_FRAME": "09:08:07:06"}, "09:08:07:06"),  # as text
+    ({"FIRST_FRAME": "09:08:07;06"}, "09:08:07;06"),
+])
+def test_c3d_timecode_written_by_ezc3d_is_kept(tmp_path, params, expected):
+    rng = np.random.default_rng(7)
+    xyz, labels = _take(rng)
+    plain = _ezc3d_file(tmp_path / "plain.c3d", xyz, labels, 120.0)
+    assert read_markers(plain).timecode is None  # no TIMECODE group: no timecode
+    take = read_markers(_with_timecode(plain, tmp_path / "tc.c3d", **params))
+    assert take.timecode == expected and take.capture_start is None
+    np.testing.assert_allclose(take.positions, xyz, rtol=1e-6)  # the rest of the take unchanged
+    assert take.select(labels[:2]).timecode == expected  # it travels with the take
+
+
+@pytest.mark.parametrize("first_frame", [[25, 0, 0, 0], [10, 61, 0, 0], [1, 2, 3], [1.5, 2, 3, 4], "noon"])
+def test_c3d_timecode_that_is_no_timecode_is_dropped_with_a_notice(tmp_path, first_frame):
+    rng = np.random.default_rng(8)
+    xyz, labels = _take(rng)
+    plain = _ezc3d_file(tmp_path / "plain.c3d", xyz, labels, 120.0)
+    with pytest.warns(FacecapWarning, match="TIMECODE:FIRST_FRAME .* not a timecode"):
+        take = read_markers(_with_timecode(plain, tmp_path / "bad.c3d", FIRST_FRAME=first_frame))
+    assert take.timecode is None
+    np.testing.assert_allclose(take.positions, xyz, rtol=1e-6)
+
+
+def test_every_listed_format_is_read(tmp_path):
+    """MARKER_FORMATS (what --help lists) and read_markers agree: each suffix reads; another does not."""
+    from facecap.io.read_markers import MARKER_FORMATS, MARKER_SUFFIXES
+    from facecap.io.write_markers import write_markers
+    from facecap.structures import MarkerSequence
+
+    rng = np.random.default_rng(9)
+    xyz, labels = _take(rng, T=3, M=2)
+    take = MarkerSequence(xyz, labels, 100.0)
+    files = {suffix: tmp_path / f"take{suffix}" for suffix in MARKER_FORMATS}
+    for suffix in (".c3d", ".trc", ".csv"):
+        write_markers(take, files[suffix])
+    rows = ["\t".join(f"{v:.6f}" for v in frame.ravel()) for frame in xyz]
+    files[".tsv"].write_text("\n".join(["NO_OF_FRAMES\t3", "NO_OF_MARKERS\t2", "FREQUENCY\t100",
+                                        "MARKER_NAMES\t" + "\t".join(labels), *rows]) + "\n")
+    assert MARKER_SUFFIXES == tuple(MARKER_FORMATS) and set(MARKER_FORMATS) == set(files)
+    for path in files.values():
+        np.testing.assert_allclose(read_markers(path).positions, xyz, rtol=1e-5, atol=1e-4)
+    with pytest.raises(FileFormatError, match="expected one of") as info:
+        read_markers(tmp_path / "take.bvh")
+    assert all(suffix in str(info.value) for suffix in MARKER_FORMATS)
+
+
 # --------------------------------------------------------------------------- TRC
 
 _TRC = (

@@ -52,6 +52,8 @@ def test_qualisys_tsv_round_trip(tmp_path, column_row, gap_as_zero):
     np.testing.assert_array_equal(take.gap_mask, gaps)
     np.testing.assert_allclose(take.positions[~gaps], P[~gaps], rtol=1e-12)
     assert take.first_frame == 0 and take.residuals is None
+    # TIME_STAMP: the capture's start by QTM's clock, then seconds since the PC started (not kept)
+    assert take.capture_start == "2019-03-04, 10:22:31.123" and take.timecode is None
 
 
 def test_qualisys_tsv_header_disagreeing_with_data_is_one_clear_line(tmp_path):
@@ -105,6 +107,7 @@ def test_motive_csv_round_trip_keeps_marker_positions_only(tmp_path, units, scal
     assert take.rate == 120.0 and take.source_unit == {"Meters": "m", "Millimeters": "mm", "Centimeters": "cm"}[units]
     np.testing.assert_array_equal(take.gap_mask, gaps)
     np.testing.assert_allclose(take.positions[~gaps], P[~gaps], rtol=1e-12)
+    assert take.capture_start == "2020-01-01 10.00.00.000 AM" and take.timecode is None
 
 
 def test_facecap_csv_still_read_beside_motive_sniffing(tmp_path):

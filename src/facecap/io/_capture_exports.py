@@ -28,6 +28,7 @@ class ParsedExport(NamedTuple):
     rate: float
     unit: str | None
     first_frame: int
+    capture_start: str | None = None  # as the file writes it
 
 
 def _floats(rows: list[list[str]], line_numbers: list[int], path: str) -> FloatArray:
@@ -127,7 +128,8 @@ def parse_qualisys_tsv(text: str, path: str) -> ParsedExport:
         first_frame = int(frames[0]) - 1  # QTM counts frames from 1
     P = data[:, lead:].reshape(n_frames, n_markers, 3)
     P[(P == 0.0).all(axis=2)] = np.nan
-    return ParsedExport(P, labels, rate, "mm", first_frame)
+    stamp = header.get("TIME_STAMP", ([""], 0))[0]  # date and time, then seconds since the PC started
+    return ParsedExport(P, labels, rate, "mm", first_frame, (stamp[0].strip() if stamp else "") or None)
 
 
 def is_motive_csv(text: str) -> bool:
@@ -194,4 +196,5 @@ def parse_motive_csv(text: str, path: str) -> ParsedExport:
         raise FileFormatError("the Frame column must hold consecutive integers", path=path)
     cols = [[markers[name][a] for a in "XYZ"] for name in labels]
     P = data[:, np.array(cols)]  # (T, M, 3)
-    return ParsedExport(np.ascontiguousarray(P), labels, rate, unit, int(frames[0]))
+    return ParsedExport(np.ascontiguousarray(P), labels, rate, unit, int(frames[0]),
+                        meta.get("capture start time") or None)

@@ -36,7 +36,11 @@ from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from ..units import mm_per_unit, normalize_unit
 
-__all__ = ["Correspondence", "CorrespondenceMatch", "read_correspondence", "match_correspondence"]
+__all__ = ["Correspondence", "CorrespondenceMatch", "read_correspondence", "match_correspondence", "MAP_FORMATS"]
+
+MAP_FORMATS: dict[str, str] = {".json": "JSON"}
+"""File suffix -> the format :func:`read_correspondence` reads (``facecap --help`` lists it); the content,
+not the suffix, is checked."""
 
 
 @dataclass(frozen=True, eq=False)

@@ -18,7 +18,11 @@ Formats
     prefix, kept in :attr:`MarkerSequence.subjects`, when the labels stay
     unique without it; a repeated label gets a ``_2``, ``_3`` suffix (with a
     :class:`~facecap.errors.FacecapWarning`); an empty one is
-    ``unlabeled_point_<column>``.
+    ``unlabeled_point_<column>``. The SMPTE timecode of the first frame, kept
+    in :attr:`MarkerSequence.timecode`, comes from a ``TIMECODE`` group, the
+    layout Vicon writes: ``FIRST_FRAME`` (hours, minutes, seconds, frames and
+    perhaps a subframe, or the timecode as text) and ``DROP_FRAMES``. C3D has
+    no standard place for a timecode; a file without that group has none.
 ``.trc``
     The tab-separated text format of Motion Analysis and OpenSim: a
     ``PathFileType`` line, a line of header keys (``DataRate``,
@@ -33,7 +37,9 @@ Formats
     and newer ``TRAJECTORY_TYPES``), then optionally a column row
     ``Frame  Time  A X  A Y  A Z ...`` and one row per frame (``Frame`` counts
     from 1; without the column row a data row is just X Y Z per marker).
-    Coordinates are in mm; an occluded marker is empty or 0, 0, 0.
+    Coordinates are in mm; an occluded marker is empty or 0, 0, 0. The date
+    and time in ``TIME_STAMP`` (the capture's start by QTM's clock) is kept in
+    :attr:`MarkerSequence.capture_start`.
 ``.csv`` from OptiTrack Motive
     Recognised by its first line, ``Format Version,<v>,Take Name,...`` with
     key/value pairs among them ``Capture Frame Rate``, ``Export Frame Rate``
@@ -44,7 +50,8 @@ Formats
     ``Position``/``Rotation``/``Mean Marker Error`` per column and the
     ``Frame,Time (Seconds),X,Y,Z,...`` row; then one row per frame (``Frame``
     from 0). Only the ``Marker`` columns' ``Position`` X, Y, Z are read (not
-    rigid bodies or their markers); a blank cell is a gap.
+    rigid bodies or their markers); a blank cell is a gap. ``Capture Start
+    Time`` is kept in :attr:`MarkerSequence.capture_start`.
 ``.csv``
     facecap's own simple format, comma separated::
 
@@ -89,9 +96,17 @@ from ._c3d_big_endian import big_endian_to_intel
 from ._capture_exports import ParsedExport, is_motive_csv, parse_motive_csv, parse_qualisys_tsv
 from ._c3d_check import DEC, MIPS, C3DLayout, c3d_layout
 
-__all__ = ["read_markers", "MARKER_SUFFIXES"]
+__all__ = ["read_markers", "MARKER_FORMATS", "MARKER_SUFFIXES"]
 
-MARKER_SUFFIXES = (".c3d", ".trc", ".csv", ".tsv")
+MARKER_FORMATS: dict[str, str] = {
+    ".c3d": "C3D",
+    ".trc": "TRC",
+    ".tsv": "Qualisys QTM TSV",
+    ".csv": "OptiTrack Motive or facecap CSV",
+}
+"""File suffix -> the formats :func:`read_markers` reads with it (``facecap --help`` lists these)."""
+
+MARKER_SUFFIXES = tuple(MARKER_FORMATS)
 """File suffixes :func:`read_markers` reads (the format is chosen by the suffix; ``.csv`` is sniffed)."""
 
 
@@ -121,7 +136,8 @@ def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> Ma
         in, ``source_path``, ``first_frame`` (0-based, see module docstring),
         and for C3D ``residuals`` (T, M) float64 in mm, NaN at gaps (None for
         TRC and CSV, which hold no residuals) and ``subjects`` (see the module
-        docstring; None when the labels carry none).
+        docstring; None when the labels carry none); ``timecode`` and
+        ``capture_start`` where the file states them (see the module docstring).
 
     Raises
     ------
@@ -133,8 +149,9 @@ def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> Ma
     Warns
     -----
     FacecapWarning
-        For a C3D file with repeated labels (renamed) or one that ends after
-        fewer whole frames than it declares (the frames it holds are read).
+        For a C3D file with repeated labels (renamed), one that ends after
+        fewer whole frames than it declares (the frames it holds are read), or
+        one whose ``TIMECODE:FIRST_FRAME`` is no timecode (read without one).
     InputError
         If ``unit`` is not a known length unit.
 
@@ -188,7 +205,8 @@ def read_markers(path: str | os.PathLike[str], *, unit: str | None = None) -> Ma
 def _from_export(parsed: ParsedExport, path: str, unit_override: str | None, where: str) -> MarkerSequence:
     labels, subjects = _c3d_labels(parsed.labels, path)
     file_unit = _file_unit(parsed.unit, unit_override, path, where)
-    return _make_sequence(parsed.positions, labels, parsed.rate, file_unit, path, parsed.first_frame, None, subjects)
+    return _make_sequence(parsed.positions, labels, parsed.rate, file_unit, path, parsed.first_frame, None, subjects,
+                          capture_start=parsed.capture_start)
 
 
 # --------------------------------------------------------------------------- shared
@@ -203,6 +221,9 @@ def _make_sequence(
     first_frame: int,
     residuals_file_unit: FloatArray | None = None,
     subjects: tuple[str, ...] | None = None,
+    *,
+    timecode: str | None = None,
+    capture_start: str | None = None,
 ) -> MarkerSequence:
     """Convert to mm and build the record; problems become FileFormatError naming ``path``."""
     blank = [i for i, s in enumerate(labels) if not s.strip()]
@@ -231,6 +252,8 @@ def _make_sequence(
             first_frame=int(first_frame),
             residuals=R,
             subjects=subjects,
+            timecode=timecode,
+            capture_start=capture_start,
         )
     except InputError as exc:
         raise FileFormatError(exc.message, path=path) from None
@@ -558,6 +581,8 @@ def _read_c3d(p: Path, unit_override: str | None) -> MarkerSequence:
         points = np.asarray(c3d["data"]["points"], dtype=np.float64)
         residual = np.asarray(c3d["data"]["meta_points"]["residuals"], dtype=np.float64)
         point_params = c3d["parameters"]["POINT"]
+        timecode_params = next((c3d["parameters"][g] for g in c3d["parameters"].keys() if g.upper() == "TIMECODE"),
+                               None)
         header = c3d["header"]["points"]
     except Exception as exc:  # ezc3d raises OSError, ValueError, RuntimeError, IndexError, ...
         reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
@@ -614,7 +639,41 @@ def _read_c3d(p: Path, unit_override: str | None) -> MarkerSequence:
     xyz[occluded] = np.nan
     res = np.where(occluded, np.nan, res)
     first_frame = int(header.get("first_frame", 0))
-    return _make_sequence(xyz, labels, rate, file_unit, path, first_frame, res, subjects)
+    timecode = None if timecode_params is None else _c3d_timecode(timecode_params, path)
+    return _make_sequence(xyz, labels, rate, file_unit, path, first_frame, res, subjects, timecode=timecode)
+
+
+def _c3d_timecode(group: dict, path: str) -> str | None:
+    """``'HH:MM:SS:FF'`` from a C3D ``TIMECODE`` group, or None (with a notice when it is unreadable).
+
+    ``FIRST_FRAME`` holds hours, minutes, seconds, frames and perhaps a subframe
+    (numbers), or the timecode as text; ``DROP_FRAMES`` nonzero marks drop-frame
+    timecode, written with ``;`` before the frames as SMPTE does.
+    """
+
+    def value(name: str) -> object:
+        entry = group.get(name)
+        return entry.get("value") if isinstance(entry, dict) else None
+
+    first, drop_frames = value("FIRST_FRAME"), value("DROP_FRAMES")
+    if first is None or np.size(first) == 0:
+        return None
+    drop = drop_frames is not None and np.size(drop_frames) > 0 and bool(np.ravel(drop_frames)[0])
+    if isinstance(first, list) and isinstance(first[0], str):  # the timecode as text
+        text = first[0].strip()
+        drop = drop or ";" in text
+        cells = text.replace(";", ":").replace(".", ":").split(":")
+        fields = [float(c) for c in cells] if all(c.isdigit() for c in cells) else []
+    else:
+        fields = [float(v) for v in np.ravel(np.asarray(first, dtype=np.float64))]
+    whole = len(fields) >= 4 and all(math.isfinite(v) and v == round(v) and v >= 0 for v in fields[:5])
+    if not whole or not (fields[0] < 24 and fields[1] < 60 and fields[2] < 60):
+        warnings.warn(f"{path}: TIMECODE:FIRST_FRAME holds {first!r}, not a timecode; the take is read without one",
+                      FacecapWarning, stacklevel=4)
+        return None
+    hh, mm, ss, ff = (int(v) for v in fields[:4])
+    subframe = f".{int(fields[4])}" if len(fields) > 4 and fields[4] else ""
+    return f"{hh:02d}:{mm:02d}:{ss:02d}{';' if drop else ':'}{ff:02d}{subframe}"
 
 
 def _corrected_counts(data: bytes, layout: C3DLayout, patch_used: bool) -> bytes:

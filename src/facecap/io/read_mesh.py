@@ -21,9 +21,13 @@ from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from ..units import mm_per_unit, normalize_unit
 
-__all__ = ["read_mesh"]
+__all__ = ["read_mesh", "MESH_FORMATS", "MESH_SUFFIXES"]
 
-_SUFFIXES = (".obj", ".ply", ".glb", ".gltf")
+MESH_FORMATS: dict[str, str] = {".obj": "OBJ", ".ply": "PLY", ".glb": "glTF", ".gltf": "glTF"}
+"""File suffix -> the format :func:`read_mesh` reads with it (``facecap --help`` lists these)."""
+
+MESH_SUFFIXES = tuple(MESH_FORMATS)
+"""File suffixes :func:`read_mesh` reads (the format is chosen by the suffix)."""
 
 # byte classes: whitespace as numpy's text parser and OBJ/PLY understand it
 _WS = np.zeros(256, dtype=bool)
@@ -122,9 +126,9 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
     """
     p = Path(os.fspath(path))
     suffix = p.suffix.lower()
-    if suffix not in _SUFFIXES:
+    if suffix not in MESH_SUFFIXES:
         raise FileFormatError(
-            f"unknown mesh file type {p.suffix!r}: expected one of {list(_SUFFIXES)}", path=str(p)
+            f"unknown mesh file type {p.suffix!r}: expected one of {list(MESH_SUFFIXES)}", path=str(p)
         )
     if unit is None:
         unit = "m" if suffix in (".glb", ".gltf") else "mm"

@@ -130,7 +130,7 @@ class MeshCheck:
             groups = self.duplicate_groups
             out.append(
                 f"{_n(dup.size, 'vertex duplicates', 'vertices duplicate')} another within "
-                f"{self.duplicate_tolerance_mm:.3g} ({_n(len(groups), 'group', 'groups')}, e.g. "
+                f"{self.duplicate_tolerance_mm:.3g} mm ({_n(len(groups), 'group', 'groups')}, e.g. "
                 f"UV-seam splits; first group: {groups[0].tolist()})"
             )
         if self.non_manifold_edges.size:
