@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from facecap.errors import FileFormatError, InputError
-from facecap.muscles import (FRAME_FLAGS, MuscleFrameStage, flag_names, forward_markers,
-                             marker_embedding)
+from facecap.muscles import (FRAME_FLAG_MEANINGS, FRAME_FLAGS, MuscleFrameStage, MuscleSolver, flag_names,
+                             forward_markers, marker_embedding)
 from facecap.runner import run_frames
 
 from muscle_cases import ramping_controls
@@ -107,6 +107,15 @@ def test_the_stage_pickles_and_builds_its_solver_once_per_process(model_dir, lay
 def test_flag_bits() -> None:
     assert flag_names(0) == ()
     assert flag_names(1 << FRAME_FLAGS.index("jaw_at_limit") | 1) == ("too_few_markers", "jaw_at_limit")
+
+
+def test_every_flag_has_a_meaning_that_states_the_solver_default() -> None:
+    import inspect
+
+    assert set(FRAME_FLAG_MEANINGS) == set(FRAME_FLAGS)
+    defaults = inspect.signature(MuscleSolver).parameters
+    assert f"more than {defaults['flag_residual_mm'].default:g} mm" in FRAME_FLAG_MEANINGS["large_residual"]
+    assert f"fewer than {defaults['min_markers'].default} markers" in FRAME_FLAG_MEANINGS["too_few_markers"]
 
 
 def test_bad_input(model_dir, layout, truth) -> None:

@@ -8,7 +8,7 @@ from matplotlib import colormaps
 from matplotlib.image import imread
 
 from facecap.errors import InputError, MeshError
-from facecap.report.render_mesh import MeshPanel, render_mesh, render_side_by_side
+from facecap.report.render_mesh import MeshPanel, draw_mesh, render_mesh, render_side_by_side
 
 # A square [-1, 1]^2 in the z = 0 plane, counter-clockwise seen from +z (facing the front camera).
 SQUARE_V = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
@@ -124,6 +124,55 @@ def test_side_by_side_layout(tmp_path):
     assert _saturated(body[:, 240:360]).mean() > 0.2 and not _saturated(body[:, :240]).any()
 
 
+def test_returned_colour_range_and_values_beyond_it(tmp_path):
+    V, F = _bump_grid(20)
+    err = np.linalg.norm(V, axis=1)  # 0 .. ~100
+    out = tmp_path / "sbs.png"
+    # two compared panels on one given range: both drawn with it, the faces past vmax in the top colour
+    norm = render_side_by_side([(V, F, err, "a"), (V, F, 0.5 * err, "b")], out, vmin=0.0, vmax=40.0,
+                               panel_size_px=(120, 150))
+    assert (norm.vmin, norm.vmax) == (0.0, 40.0)
+    img = imread(out)
+    top = np.array(colormaps["inferno"](1.0)[:3])
+    corner = img[-150:, :120][_saturated(img[-150:, :120])][:, :3]  # panel a's coloured pixels
+    assert (np.abs(corner - top).max(axis=1) < 0.02).mean() > 0.3  # most of |V| > 40 mm: clipped to the top colour
+    # without a range: the finite min and max over every panel with values
+    norm = render_mesh(V, F, out, values=np.where(err > 90, np.nan, err), size_px=(120, 150))
+    finite = err[err <= 90]
+    assert (norm.vmin, norm.vmax) == (finite.min(), finite.max())
+    assert render_mesh(V, F, out, size_px=(120, 150)) is None
+    assert render_side_by_side([(V, F, None, "grey")], out, panel_size_px=(120, 150)) is None
+
+
+@pytest.mark.parametrize(("values", "expected"), [
+    ([0.0, 1.0], "neither"), ([0.0, 1.5], "max"), ([-0.5, 1.0], "min"), ([-0.5, np.nan, 1.5], "both"),
+    ([np.nan], "neither"),
+])
+def test_colour_bar_arrows_say_which_values_were_clipped(values, expected):
+    from matplotlib.colors import Normalize
+
+    from facecap.report.render_mesh import _colorbar_extend
+
+    assert _colorbar_extend([np.array([0.5]), np.array(values)], Normalize(0.0, 1.0)) == expected
+
+
+def test_caption_strip_under_the_panels(tmp_path):
+    V, F = _bump_grid(20)
+    out = tmp_path / "captioned.png"
+    render_side_by_side([(V, F, None, "A: truth"), (V, F, None, "B: result")], out, panel_size_px=(120, 150),
+                        caption="A: the truth\nB: the result")
+    img = imread(out)
+    ptitle = round(0.07 * 150)
+    caption_h = 3 * 19  # two lines and one of leading
+    assert img.shape[:2] == (150 + ptitle + caption_h, 240)
+    assert _covered(img[-caption_h:]).any()  # the text
+    # the panels moved up by the strip, not squeezed: the silhouette is that of an uncaptioned render
+    render_side_by_side([(V, F, None, "A: truth"), (V, F, None, "B: result")], tmp_path / "plain.png",
+                        panel_size_px=(120, 150))
+    plain = imread(tmp_path / "plain.png")
+    np.testing.assert_array_equal(_covered(img[ptitle:ptitle + 150]), _covered(plain[ptitle:ptitle + 150]))
+
+
 def test_side_view_shows_depth_profile(tmp_path):
     # A thin slab 2 wide (x), 2 tall (y), facing +x: invisible from the front, a square from the side.
     V = np.array([[0, -1, 1], [0, -1, -1], [0, 1, -1], [0, 1, 1]], float)
@@ -149,3 +198,21 @@ def test_bad_input_raises(tmp_path):
     with pytest.raises(InputError, match="panels"):
         render_side_by_side([], out)
     assert not out.exists()
+
+
+def test_draw_mesh_draws_what_render_mesh_renders(tmp_path):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    V, F = _bump_grid(20)
+    render_mesh(V, F, tmp_path / "alone.png", size_px=(120, 150), bounds=(-70, 70, -90, 90))
+    fig = Figure(figsize=(1.2, 1.5), dpi=100)
+    ax = fig.add_axes((0, 0, 1, 1))
+    window = draw_mesh(ax, V, F, bounds=(-70, 70, -90, 90), aspect_px=120 / 150)
+    FigureCanvasAgg(fig)
+    fig.savefig(tmp_path / "drawn.png", dpi=100, facecolor="white")
+    assert window == (-70.0, 70.0, -90.0, 90.0)
+    np.testing.assert_array_equal(_covered(imread(tmp_path / "drawn.png")), _covered(imread(tmp_path / "alone.png")))
+    with pytest.raises(MeshError, match="F"):
+        draw_mesh(ax, V, F + V.shape[0])
+

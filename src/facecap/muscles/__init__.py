@@ -23,7 +23,8 @@ In the order the solver uses them:
   each warm-started from the one before.
 - :class:`MuscleFrameStage` (``muscle_frame_stage.py``): the solve as a frame-runner stage
   (chunks of frames on Dask, resumable; the model and solver built once per process), its
-  per-frame :data:`FRAME_FLAGS` bit mask (:func:`flag_names`) and :func:`model_folder_sha256`.
+  per-frame :data:`FRAME_FLAGS` bit mask (:func:`flag_names`; :data:`FRAME_FLAG_MEANINGS` says what each
+  flag means) and :func:`model_folder_sha256`.
 - :func:`solve_muscle_take`, :class:`MuscleTakeResult` (``solve_muscle_take.py``): what
   ``facecap solve-muscles`` does: model folder, take and map in, a result folder like
   ``animate``'s out, plus :data:`ACTIVATIONS_FILE` and :data:`BONE_TRANSFORMS_FILE`
@@ -46,7 +47,7 @@ from .muscle_controls import MuscleControls
 from .muscle_model import FOLLOWER_WEIGHT_LIMIT, MuscleModel
 from .muscle_solver import MuscleFrame, MuscleSolver
 from .solve_muscles import MuscleTake, solve_muscles
-from .muscle_frame_stage import FRAME_FLAGS, MuscleFrameStage, flag_names, model_folder_sha256
+from .muscle_frame_stage import FRAME_FLAG_MEANINGS, FRAME_FLAGS, MuscleFrameStage, flag_names, model_folder_sha256
 from .solve_muscle_take import (ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, RIGID_FIT_LIMIT_MM, MuscleTakeResult,
                                 solve_muscle_take, write_muscle_result)
 from .edit_muscles import (DEFAULT_PENETRATION_TOLERANCE_MM, EDIT_METHOD, EditedFrame, MuscleEditResult, MuscleEditor,
@@ -65,6 +66,7 @@ __all__ = [
     "BONE_TRANSFORMS_FILE",
     "RIGID_FIT_LIMIT_MM",
     "FRAME_FLAGS",
+    "FRAME_FLAG_MEANINGS",
     "MuscleFrameStage",
     "MuscleTakeResult",
     "flag_names",

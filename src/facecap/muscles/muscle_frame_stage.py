@@ -22,11 +22,21 @@ from ..errors import FileFormatError, InputError
 from ..typing import FloatArray
 from .muscle_solver import MuscleFrame, MuscleSolver
 
-__all__ = ["MuscleFrameStage", "FRAME_FLAGS", "flag_names", "model_folder_sha256"]
+__all__ = ["MuscleFrameStage", "FRAME_FLAGS", "FRAME_FLAG_MEANINGS", "flag_names", "model_folder_sha256"]
 
 FRAME_FLAGS = ("too_few_markers", "inverted_tets", "not_converged", "constraint_violation", "jaw_at_limit",
                "large_residual")
 """The :class:`MuscleFrame` flags, in bit order: bit ``i`` of the stage's ``flags`` is ``FRAME_FLAGS[i]``."""
+FRAME_FLAG_MEANINGS = {
+    "too_few_markers": "fewer than 6 markers seen: not solved, the previous controls carried",
+    "inverted_tets": "a tetrahedron of the solved flesh is inverted",
+    "not_converged": "a quasistatic solve missed its tolerance",
+    "constraint_violation": "an activation, bone rigidity or jaw constraint violated by more than 1e-4",
+    "jaw_at_limit": "the jaw at its largest opening or slide: the markers may ask for more than the joint allows",
+    "large_residual": "a marker more than 5 mm from the model (flag_residual_mm): the model does not reach "
+                      "the markers there",
+}
+"""What each flag says, in a line a summary can print (:class:`MuscleFrame`'s ``flags``)."""
 
 # per process: the opened models and the solvers built on them (a solver costs the flesh model's
 # set-up; a chunk costs seconds per frame, so each worker builds it once, not once per chunk)

@@ -20,6 +20,9 @@ __all__ = ["MuscleSolver", "MuscleFrame"]
 
 _GOLDEN = 0.5 * (np.sqrt(5.0) - 1.0)
 _MAX_CONTINUATION_STEPS = 4000
+FLAG_RESIDUAL_MM = 5.0
+"""Default marker residual above which a frame is flagged ``large_residual``, mm (a frame the model
+reaches leaves 0.3-0.5 mm rms at 0.2 mm marker noise: docs/muscles.md, "Measured")."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -167,7 +170,7 @@ class MuscleSolver:
                  step_tolerance: float = 0.01, line_search_evaluations: int = 6, always_search: bool = False,
                  marker_noise_mm: float = 0.2,
                  penalty_growth: float = 1.05, penalty_ratio: float = 1e6, constraint_tolerance: float = 1e-5,
-                 flag_residual_mm: float = 5.0, min_markers: int = 6,
+                 flag_residual_mm: float = FLAG_RESIDUAL_MM, min_markers: int = 6,
                  max_offset_mm: float = DEFAULT_MAX_OFFSET_MM, model: MuscleModel | None = None,
                  **model_options: Any) -> None:
         if int(max_steps) < 1 or int(max_warm_steps) < 1 or int(line_search_evaluations) < 0:

@@ -42,6 +42,34 @@ def _nan_stats(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         )
 
 
+def _draw_series(ax: Any, t: np.ndarray, curves: Mapping[str, np.ndarray],
+                 bands: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
+    """Draw checked series on a matplotlib axes, as :func:`plot_series` draws them.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+    t : (T,) float64 array
+        x of every sample (s, or any unit of the axes).
+    curves : mapping of str to (T,) or (T, M) float64 array
+        A (T,) array as a line; a (T, M) array as its per-row median (line), median to 95th
+        percentile (band) and maximum (dotted), NaN ignored. Colours ``C0``, ``C1``, ... in order.
+    bands : mapping of str to ((T,), (T,)) float64 arrays, optional
+        Shaded ``(lower, upper)`` bands, in the colours after the curves'.
+    """
+    for i, (label, A) in enumerate(curves.items()):
+        colour = f"C{i}"
+        if A.ndim == 1:
+            ax.plot(t, A, color=colour, lw=1.2, label=label)
+        else:
+            med, p95, mx = _nan_stats(A)
+            ax.plot(t, med, color=colour, lw=1.2, label=f"{label} (median)")
+            ax.fill_between(t, med, p95, color=colour, alpha=0.25, lw=0, label=f"{label} (to p95)")
+            ax.plot(t, mx, color=colour, lw=0.8, ls=":", label=f"{label} (max)")
+    for j, (label, (lo_a, hi_a)) in enumerate((bands or {}).items()):
+        ax.fill_between(t, lo_a, hi_a, color=f"C{len(curves) + j}", alpha=0.2, lw=0, label=label)
+
+
 def plot_series(
     times: Any,
     series: Mapping[str, Any],
@@ -122,17 +150,7 @@ def plot_series(
     fig = Figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    for i, (label, A) in enumerate(curves.items()):
-        colour = f"C{i}"
-        if A.ndim == 1:
-            ax.plot(t, A, color=colour, lw=1.2, label=label)
-        else:
-            med, p95, mx = _nan_stats(A)
-            ax.plot(t, med, color=colour, lw=1.2, label=f"{label} (median)")
-            ax.fill_between(t, med, p95, color=colour, alpha=0.25, lw=0, label=f"{label} (to p95)")
-            ax.plot(t, mx, color=colour, lw=0.8, ls=":", label=f"{label} (max)")
-    for j, (label, (lo_a, hi_a)) in enumerate(extra.items()):
-        ax.fill_between(t, lo_a, hi_a, color=f"C{len(curves) + j}", alpha=0.2, lw=0, label=label)
+    _draw_series(ax, t, curves, extra)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if log_y:

@@ -9,6 +9,7 @@ with its own ``FigureCanvasAgg``), so it runs on any server.
 from __future__ import annotations
 
 import os
+import textwrap
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -24,7 +25,7 @@ from ..errors import InputError
 from ..io._atomic import atomic_path
 from ..validate import as_faces, as_vertices
 
-__all__ = ["render_mesh", "render_side_by_side", "MeshPanel"]
+__all__ = ["render_mesh", "render_side_by_side", "MeshPanel", "draw_mesh"]
 
 View = str | tuple[float, float]
 
@@ -42,6 +43,8 @@ _TITLE_FRACTION = 0.07
 """Share of the image height given to a panel title (and to the figure title)."""
 _MARGIN = 0.04
 """Blank border around the mesh, as a share of its projected extent."""
+_CAPTION_LINE_PX = 19
+"""Height of one caption line (11 pt text at 100 dpi, with its leading)."""
 
 
 class MeshPanel(NamedTuple):
@@ -197,6 +200,33 @@ def _pad(bounds: Sequence[float]) -> tuple[float, float, float, float]:
     return x0 - m, x1 + m, y0 - m, y1 + m
 
 
+def _colorbar_extend(values: Sequence[np.ndarray], norm: Normalize) -> str:
+    """Which ends of the colour bar get an arrow: the values that fall outside its range.
+
+    Parameters
+    ----------
+    values : sequence of (n,) float arrays
+        The values of every panel drawn with ``norm`` (NaN ignored).
+    norm : matplotlib.colors.Normalize
+        The colour range.
+
+    Returns
+    -------
+    {'neither', 'min', 'max', 'both'}
+        ``'max'`` when some value exceeds ``norm.vmax`` (those faces are drawn in the top
+        colour, and the arrow says that the top colour means "this much or more").
+
+    Examples
+    --------
+    >>> _colorbar_extend([np.array([0.0, 2.0, np.nan])], Normalize(0.0, 1.0))
+    'max'
+    """
+    finite = [v[np.isfinite(v)] for v in values]
+    above = any(v.size and float(v.max()) > norm.vmax for v in finite)
+    below = any(v.size and float(v.min()) < norm.vmin for v in finite)
+    return {(False, False): "neither", (True, False): "max", (False, True): "min", (True, True): "both"}[(above, below)]
+
+
 def _save(fig: Figure, path: str | os.PathLike[str]) -> None:
     FigureCanvasAgg(fig)
     with atomic_path(path) as tmp:
@@ -215,7 +245,8 @@ def render_side_by_side(
     cmap: str = "inferno",
     panel_size_px: tuple[int, int] = (600, 700),
     bounds: Sequence[float] | None = None,
-) -> None:
+    caption: str | None = None,
+) -> Normalize | None:
     """Render several meshes in one PNG, side by side, framed and scaled alike.
 
     Typical use: ``[truth, result, error map]`` of one frame.
@@ -246,6 +277,16 @@ def render_side_by_side(
         Screen-space window (mm, in view coordinates) shown in every panel; default
         the union of the panels' projected extents plus a small margin. Fix it
         to keep the framing identical across frames of an animation.
+    caption : str or None, optional
+        Text under the panels (lines split at ``\\n`` and wrapped to the panels' width): what the
+        panel titles' symbols mean, what the picture shows and why. Default None: no caption strip.
+
+    Returns
+    -------
+    matplotlib.colors.Normalize or None
+        The colour range every panel with values was drawn with (``vmin``, ``vmax``, mm or
+        the values' unit); None when no panel has values. Values beyond it are drawn in the
+        end colours and the colour bar gets an arrow at that end.
 
     Raises
     ------
@@ -263,7 +304,7 @@ def render_side_by_side(
         vals = _check_values(p.values, V.shape[0], name=f"panels[{k}].values")
         checked.append((V, F, vals, p.title))
     any_values = any(c[2] is not None for c in checked)
-    _render(
+    return _render(
         checked,
         path,
         value_label=value_label,
@@ -278,6 +319,7 @@ def render_side_by_side(
         title_h=int(round(_TITLE_FRACTION * ph)) if title else 0,
         ptitle_h=int(round(_TITLE_FRACTION * ph)) if any(c[3] for c in checked) else 0,
         bounds=bounds,
+        caption=caption,
     )
 
 
@@ -297,8 +339,9 @@ def _render(
     title_h: int,
     ptitle_h: int,
     bounds: Sequence[float] | None,
-) -> None:
-    """Lay out validated panels in a figure of exactly the requested pixels and save it."""
+    caption: str | None = None,
+) -> Normalize | None:
+    """Lay out validated panels in a figure of exactly the requested pixels, save it, return the colour range."""
     _camera(view)
     if cmap not in colormaps:
         raise InputError(f"cmap: unknown matplotlib colour map {cmap!r}")
@@ -323,23 +366,32 @@ def _render(
         fixed = _pad((bs[:, 0].min(), bs[:, 1].max(), bs[:, 2].min(), bs[:, 3].max()))
 
     k = len(checked)
-    W, H = k * pw + cbar_w, ph + title_h + ptitle_h
+    # each caption line wrapped to the panels' width (11 pt text: at most about 8.5 px a character)
+    caption_lines = [part for line in (caption.splitlines() if caption else [])
+                     for part in (textwrap.wrap(line, width=max(20, int(k * pw / 8.5))) or [""])]
+    cap_h = (len(caption_lines) + 1) * _CAPTION_LINE_PX if caption_lines else 0
+    W, H = k * pw + cbar_w, ph + title_h + ptitle_h + cap_h
     fig = Figure(figsize=(W / _DPI, H / _DPI), dpi=_DPI, facecolor=_BACKGROUND)
     for i, (V, F, vals, ptitle) in enumerate(checked):
-        ax = fig.add_axes((i * pw / W, 0.0, pw / W, ph / H))
+        ax = fig.add_axes((i * pw / W, cap_h / H, pw / W, ph / H))
         tri, rgb = _polygons(V, F, vals, view, norm if vals is not None else None, cmap)
         _draw(ax, tri, rgb, fixed, pw / ph)
         if ptitle:
-            fig.text((i + 0.5) * pw / W, (ph + 0.5 * ptitle_h) / H, ptitle, ha="center", va="center", fontsize=12)
+            fig.text((i + 0.5) * pw / W, (cap_h + ph + 0.5 * ptitle_h) / H, ptitle, ha="center", va="center",
+                     fontsize=12)
     if title:
         fig.text(0.5, 1.0 - 0.5 * title_h / H, title, ha="center", va="center", fontsize=14)
+    if caption_lines:
+        fig.text(0.5 * k * pw / W, 0.5 * cap_h / H, "\n".join(caption_lines), ha="center", va="center", fontsize=11,
+                 linespacing=1.3)
     if norm is not None and cbar_w > 0:
-        cax = fig.add_axes(((k * pw + 0.15 * cbar_w) / W, 0.1 * ph / H, 0.2 * cbar_w / W, 0.8 * ph / H))
+        cax = fig.add_axes(((k * pw + 0.15 * cbar_w) / W, (cap_h + 0.1 * ph) / H, 0.2 * cbar_w / W, 0.8 * ph / H))
         sm = ScalarMappable(norm=norm, cmap=colormaps[cmap])
-        cb = fig.colorbar(sm, cax=cax)
+        cb = fig.colorbar(sm, cax=cax, extend=_colorbar_extend(with_values, norm))
         if value_label:
             cb.set_label(value_label)
     _save(fig, path)
+    return norm
 
 
 def render_mesh(
@@ -356,7 +408,7 @@ def render_mesh(
     cmap: str = "inferno",
     size_px: tuple[int, int] = (800, 900),
     bounds: Sequence[float] | None = None,
-) -> None:
+) -> Normalize | None:
     """Render a triangle mesh to a PNG: grey-shaded, or coloured by a per-vertex value.
 
     Parameters
@@ -393,6 +445,12 @@ def render_mesh(
         grown to the panel's aspect ratio; default the mesh's projected extent
         plus a 4 % margin. Fix it to frame every frame of an animation alike.
 
+    Returns
+    -------
+    matplotlib.colors.Normalize or None
+        The colour range of ``values`` as drawn (values beyond it in the end colours, with an
+        arrow on the colour bar); None without ``values``.
+
     Raises
     ------
     InputError
@@ -414,7 +472,8 @@ def render_mesh(
     >>> V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
     >>> F = np.array([[0, 1, 2], [0, 2, 3]])
     >>> out = os.path.join(tempfile.mkdtemp(), "quad.png")
-    >>> render_mesh(V, F, out, size_px=(64, 64))
+    >>> render_mesh(V, F, out, size_px=(64, 64)) is None  # no values, no colour range
+    True
     >>> os.path.getsize(out) > 0
     True
     """
@@ -424,7 +483,7 @@ def render_mesh(
     vals = _check_values(values, Vc.shape[0], name="values")
     cbar_w = int(round(_COLORBAR_FRACTION * w)) if vals is not None else 0
     title_h = int(round(_TITLE_FRACTION * h)) if title else 0
-    _render(
+    return _render(
         [(Vc, Fc, vals, None)],
         path,
         value_label=value_label,
@@ -440,3 +499,43 @@ def render_mesh(
         ptitle_h=0,
         bounds=bounds,
     )
+
+
+def draw_mesh(ax: Any, V: Any, F: Any, *, view: View = "front", bounds: Sequence[float] | None = None,
+              aspect_px: float = 1.0) -> tuple[float, float, float, float]:
+    """Draw a grey-shaded mesh into a matplotlib axes, for pictures that add their own marks on top.
+
+    The same painter's-algorithm render as :func:`render_mesh` (back faces culled, Lambert plus
+    ambient), drawn into ``ax`` with the axes' limits set to ``bounds`` grown to ``aspect_px``.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        The axes to draw into (axis lines are turned off).
+    V : (n, 3) float64 array, mm
+        Vertex positions.
+    F : (m, 3) int64 array
+        Triangles, counter-clockwise seen from outside.
+    view : {'front', 'side'} or (azimuth_deg, elevation_deg), optional
+        As for :func:`render_mesh`; screen x is ``V @ right``, screen y ``V @ up``.
+    bounds : (xmin, xmax, ymin, ymax) or None, optional
+        Screen-space window, mm; default the mesh's projected extent plus a 4 % margin.
+    aspect_px : float, default 1.0
+        Width over height of the axes in pixels, so that a millimetre is as long across as up.
+
+    Returns
+    -------
+    (xmin, xmax, ymin, ymax)
+        The window drawn, before it was grown to the aspect.
+
+    Raises
+    ------
+    InputError
+        If the mesh, the view or the bounds are invalid (MeshError for the mesh).
+    """
+    Vc = as_vertices(V, name="V")
+    Fc = as_faces(F, Vc.shape[0], name="F")
+    window = _check_bounds(bounds) or _pad(_screen_bounds(Vc, view))
+    tri, rgb = _polygons(Vc, Fc, None, view, None, "inferno")
+    _draw(ax, tri, rgb, window, float(aspect_px))
+    return window
