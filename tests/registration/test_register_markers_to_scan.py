@@ -251,3 +251,13 @@ def test_head_band_markers_off_the_skin_neither_pull_the_pose_nor_flip_the_windi
     assert back.normals_flipped and back.rigid.rms < 0.5
     angle, shift = _errors(back, true, skin)
     assert angle < 0.5 and shift < 0.5, (angle, shift)
+
+
+def test_scan_winding_reads_the_side_from_the_shape() -> None:
+    from facecap.registration import scan_winding
+
+    V = np.array([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]) * 80.0
+    F = np.array([[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]])
+    assert scan_winding(V, F) == 1 and scan_winding(V, F[:, ::-1]) == -1  # an octahedron, out and in
+    flat = np.array([[0.0, 0, 0], [100, 0, 0], [100, 100, 0], [0, 100, 0]])
+    assert scan_winding(flat, np.array([[0, 1, 2], [0, 2, 3]])) == 0  # a flat patch cannot tell

@@ -167,3 +167,22 @@ def test_bad_input_is_named() -> None:
         rigid_icp(P, V, F, init=np.eye(3))
     with pytest.raises(InputError, match="max_iterations"):
         rigid_icp(P, V, F, max_iterations=0)
+
+
+def test_one_surface_serves_many_fits() -> None:
+    from facecap.registration import ClosestPointSurface, rigid_icp_to_surface
+
+    V, F = _bumpy_sheet()
+    surface = ClosestPointSurface(V, F, reject_boundary=True)
+    for seed in (3, 4):
+        truth = _on_surface(V, F, 120, seed=seed)
+        R, t = _motion(seed, angle_deg=5.0)
+        source = (truth - t) @ R
+        init = np.eye(4)
+        init[:3, 3] = truth.mean(axis=0) - source.mean(axis=0)
+        shared = rigid_icp_to_surface(source, surface, init)
+        alone = rigid_icp(source, V, F, init=init)
+        assert _angle_deg(shared.rotation, R) < 1e-6 and np.allclose(shared.apply(source), truth, atol=1e-6)
+        np.testing.assert_allclose(shared.matrix, alone.matrix, atol=1e-12)
+    with pytest.raises(MeshError, match="F"):
+        ClosestPointSurface(V, F + V.shape[0], reject_boundary=True)

@@ -16,7 +16,15 @@ In the order a user meets them:
   optical-flow registration of section 6.2, as a :class:`Refinement`, on the
   :func:`cylindrical_map` (``cylindrical_map.py``) unwrap.
 - :func:`rigid_icp` (``rigid_icp.py``): rigid ICP of points onto a surface, as
-  an :class:`IcpResult`.
+  an :class:`IcpResult`; :func:`rigid_icp_to_surface` runs it on a
+  :class:`ClosestPointSurface` built once.
+- :func:`find_marker_map` (``find_marker_map.py``): where each marker of a take
+  sits on a scan, found by a global search from the rest frame, as a :class:`MarkerMap`.
+- :func:`map_markers` (``map_markers.py``): ``facecap map``, the map written as
+  ``map.json`` with its report and picture; :func:`rest_markers_of` prepares the
+  rest frame, :func:`marker_status` names each marker's outcome.
+- :func:`check_marker_map` (``check_marker_map.py``): ``facecap info map.json
+  --scan --markers``, a hand-made map checked against the take, as a dict.
 
 The functions share their modules' names, so
 ``facecap.registration.register_scans`` is the function; reach a module itself
@@ -28,7 +36,7 @@ from __future__ import annotations
 from .align_albedo import DEFAULT_ALBEDO_ITERATIONS, UNSEEN_ANCHOR, AlbedoAlignment, align_albedo
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .refine_registration import Refinement, refine_registration
-from .register_markers_to_scan import MIN_FACING_OUTWARD, MarkerRegistration, register_markers_to_scan
+from .register_markers_to_scan import MIN_FACING_OUTWARD, MarkerRegistration, register_markers_to_scan, scan_winding
 from .register_scans import (
     DEFAULT_REST_WEIGHT,
     TEMPLATE_DEFORMATION_WEIGHT,
@@ -36,7 +44,18 @@ from .register_scans import (
     register_scans,
 )
 from .register_template_to_scan import DEFAULT_CLOSEST_POINT_WEIGHTS, TemplateRegistration, register_template_to_scan
-from .rigid_icp import IcpResult, rigid_icp
+from .rigid_icp import ClosestPointSurface, IcpResult, rigid_icp, rigid_icp_to_surface
+from .find_marker_map import (
+    DEFAULT_AMBIGUITY_MM,
+    DEFAULT_OFF_SKIN_MM,
+    DEFAULT_UNCERTAIN_MM,
+    MIN_MAP_MARKERS,
+    UNSURE_SCORE_RATIO,
+    MarkerMap,
+    find_marker_map,
+)
+from .map_markers import MAX_MOTION_FRAMES, map_markers, map_side_files, marker_status, rest_markers_of
+from .check_marker_map import MAP_CHECK_MM, check_marker_map
 
 __all__ = [
     "align_albedo",
@@ -50,6 +69,7 @@ __all__ = [
     "register_markers_to_scan",
     "MarkerRegistration",
     "MIN_FACING_OUTWARD",
+    "scan_winding",
     "register_template_to_scan",
     "TemplateRegistration",
     "DEFAULT_CLOSEST_POINT_WEIGHTS",
@@ -60,4 +80,20 @@ __all__ = [
     "TriangleRaster",
     "rigid_icp",
     "IcpResult",
+    "rigid_icp_to_surface",
+    "ClosestPointSurface",
+    "find_marker_map",
+    "MarkerMap",
+    "MIN_MAP_MARKERS",
+    "DEFAULT_OFF_SKIN_MM",
+    "DEFAULT_AMBIGUITY_MM",
+    "DEFAULT_UNCERTAIN_MM",
+    "UNSURE_SCORE_RATIO",
+    "map_markers",
+    "map_side_files",
+    "marker_status",
+    "rest_markers_of",
+    "MAX_MOTION_FRAMES",
+    "check_marker_map",
+    "MAP_CHECK_MM",
 ]

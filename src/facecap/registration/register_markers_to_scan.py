@@ -15,9 +15,9 @@ from ..mesh.facing_outward import facing_outward
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_points, as_positive, as_rigid_transform
-from .rigid_icp import IcpResult, _check_units, _inlier_mask, _solve, _Surface
+from .rigid_icp import ClosestPointSurface, IcpResult, _check_units, _inlier_mask, rigid_icp_to_surface
 
-__all__ = ["MarkerRegistration", "register_markers_to_scan", "MIN_FACING_OUTWARD"]
+__all__ = ["MarkerRegistration", "register_markers_to_scan", "scan_winding", "MIN_FACING_OUTWARD"]
 
 MIN_FACING_OUTWARD = 0.02
 """:func:`~facecap.mesh.facing_outward` of a scan, as a fraction of its bounding-box diagonal, that decides
@@ -79,7 +79,9 @@ class MarkerRegistration(NamedTuple):
     rms: float
 
 
-def _off_skin(X: FloatArray, rigid: IcpResult, surface: _Surface, offset: float, max_residual_mm: float) -> BoolArray:
+def _off_skin(
+    X: FloatArray, rigid: IcpResult, surface: ClosestPointSurface, offset: float, max_residual_mm: float
+) -> BoolArray:
     """Markers that land, under ``rigid``, more than ``max_residual_mm`` (or 3 median residuals) off the skin.
 
     The height is measured on either side of the triangles (``|n . (y - c)| - offset``), so the test
@@ -103,8 +105,22 @@ def _off_skin(X: FloatArray, rigid: IcpResult, surface: _Surface, offset: float,
     return off
 
 
-def _winding(V: FloatArray, F: IntArray) -> int:
-    """+1 when the scan's triangles face out of the head, -1 when into it, 0 when its shape cannot tell."""
+def scan_winding(V: FloatArray, F: IntArray) -> int:
+    """Which way a scan's triangles face: +1 out of the head, -1 into it, 0 when its shape cannot tell.
+
+    Parameters
+    ----------
+    V : (n, 3) float64 array, mm
+        Scan vertices.
+    F : (m, 3) int64 array
+        Scan triangles.
+
+    Returns
+    -------
+    int
+        The sign of :func:`~facecap.mesh.facing_outward`, or 0 when it is under
+        :data:`MIN_FACING_OUTWARD` of the bounding-box diagonal (a nearly flat patch).
+    """
     facing = facing_outward(V, F)
     diagonal = float(np.linalg.norm(V.max(axis=0) - V.min(axis=0)))
     if abs(facing) < MIN_FACING_OUTWARD * diagonal:
@@ -141,6 +157,7 @@ def register_markers_to_scan(
     tolerance_mm: float = 1e-4,
     refine_rigid: bool = True,
     size_tolerance: float | None = 1.0,
+    surface: ClosestPointSurface | None = None,
 ) -> MarkerRegistration:
     """Register the markers of one mocap frame onto a face scan of the same expression (Huang et al. 2011, sec. 5).
 
@@ -212,6 +229,9 @@ def register_markers_to_scan(
     size_tolerance : float or None, default 1.0
         Raise if the scan's size differs from the markers' by more than this
         fraction (a scan in other units); None skips the check.
+    surface : ClosestPointSurface, optional
+        ``scan``'s closest-point trees, built by the caller for other fits on
+        the same scan (with ``reject_boundary=True``); default None builds them.
 
     Returns
     -------
@@ -321,20 +341,23 @@ def register_markers_to_scan(
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise InputError(f"max_iterations: expected a positive integer, got {max_iterations!r}")
     tolerance_mm = as_positive(tolerance_mm, name="tolerance_mm")
-    surface = _Surface(V, F, reject_boundary=True)
+    if surface is None:
+        surface = ClosestPointSurface(V, F, reject_boundary=True)
+    elif not isinstance(surface, ClosestPointSurface) or surface.V.shape != V.shape or surface.F.shape != F.shape:
+        raise InputError("surface: expected the ClosestPointSurface of this scan")
     options = dict(method="point_to_plane", max_iterations=int(max_iterations), trim=float(trim),
                    tolerance_mm=tolerance_mm)
-    winding = _winding(V, F) if offset > 0 else 1
+    winding = scan_winding(V, F) if offset > 0 else 1
     sign = -1.0 if winding < 0 else 1.0
-    rigid = _solve(X0, surface, init, offset_mm=sign * offset, **options)
+    rigid = rigid_icp_to_surface(X0, surface, init, offset_mm=sign * offset, **options)
     off_skin = _off_skin(X0, rigid, surface, offset, max_residual_mm)
     X_fit = np.where(off_skin[:, None], np.nan, X0)
     if off_skin.any():
         # Markers off the skin (a head band, a marker on the hair) that the trimming keeps pull the
         # pose: with 4 band markers among 49, the rigid RMS was 0.7-2.4 mm against 0.1-0.2 without them
-        rigid = _solve(X_fit, surface, rigid.matrix, offset_mm=sign * offset, **options)
+        rigid = rigid_icp_to_surface(X_fit, surface, rigid.matrix, offset_mm=sign * offset, **options)
     if winding == 0:  # a shape too flat to tell: the side the markers fit better
-        back = _solve(X_fit, surface, rigid.matrix, offset_mm=-offset, **options)
+        back = rigid_icp_to_surface(X_fit, surface, rigid.matrix, offset_mm=-offset, **options)
         if back.rms < rigid.rms:
             rigid, sign = back, -1.0
     R, t = rigid.rotation, rigid.translation
@@ -386,7 +409,7 @@ def register_markers_to_scan(
 
 
 def _skin_under(
-    Y: FloatArray, surface: _Surface, offset: float, *, iterations: int = 4
+    Y: FloatArray, surface: ClosestPointSurface, offset: float, *, iterations: int = 4
 ) -> tuple[FloatArray, FloatArray, IntArray, BoolArray]:
     """The skin point under each marker centre: where the surface's smooth normal, ``offset`` long, reaches it.
 
@@ -418,7 +441,7 @@ def _subspace_icp(
     c: FloatArray,
     *,
     joint: bool,
-    surface: _Surface,
+    surface: ClosestPointSurface,
     target_offset: float,
     trim: float,
     max_residual_mm: float,
