@@ -192,3 +192,174 @@ def test_synth_renders_footage_from_the_refined_scan_by_default(tmp_path, monkey
                             (["--render-edge", "0.5"], 0.5)):
         assert main(["-q", "synth", "--out", str(tmp_path / str(len(asked))), "--frames", "5", "--footage", *extra]) == 0
         assert asked[-1] == expected
+
+
+def _contents(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_second_run_into_a_result_is_refused_at_once_and_loses_nothing(capture_case, tmp_path, capsys):
+    out = tmp_path / "result"
+    assert _animate(capture_case, out, "--export", "mdd") == 0
+    (out / "performance.pc2").write_bytes(b"an export made since")  # what a user adds to a result
+    (out / "notes.txt").write_text("shot 12, take 3")
+    before = _contents(out)
+    assert _animate(capture_case, out) == 2
+    _one_line_error(capsys, str(out), "holds an earlier result", "pass --overwrite")
+    assert _contents(out) == before and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+    # refused before any work: even before the inputs are read (a missing scan would be the error otherwise)
+    capture_case.scan_path = tmp_path / "missing.obj"
+    assert _animate(capture_case, out) == 2
+    _one_line_error(capsys, str(out), "pass --overwrite")
+    capture_case.scan_path = tmp_path / "scan.obj"
+    # --overwrite replaces the folder as a whole: the new result, nothing of the old one
+    assert _animate(capture_case, out, "--overwrite") == 0
+    assert not (out / "notes.txt").exists() and not (out / "performance.mdd").exists()
+    assert np.array_equal(np.load(out / "vertices.npy"), np.frombuffer(before["vertices.npy"][128:], "<f4").reshape(
+        np.load(out / "vertices.npy").shape))  # the same inputs: the same frames
+    # a folder that is not a facecap result is never replaced, even with --overwrite
+    mine = tmp_path / "mine"
+    mine.mkdir()
+    (mine / "holiday.jpg").write_bytes(b"jpeg")
+    assert _animate(capture_case, mine, "--overwrite") == 2
+    _one_line_error(capsys, str(mine), "not a facecap result", "even with --overwrite")
+    assert _contents(mine) == {"holiday.jpg": b"jpeg"}
+    # an empty folder made beforehand is written into
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _animate(capture_case, empty) == 0 and (empty / "performance.json").is_file()
+
+
+def test_every_command_that_writes_an_output_takes_overwrite():
+    from facecap.cli import build_parser
+
+    commands = build_parser()._subparsers._group_actions[0].choices
+    writers = {name for name, parser in commands.items()
+               if any("--out" in action.option_strings for action in parser._actions)}
+    assert writers >= {"animate", "plan-scans", "register-scans", "blend", "scans-pipeline", "synth", "wrinkles",
+                       "remove-wrinkles", "build-anatomy", "solve-muscles", "edit-muscles", "demo", "export"}
+    for name in writers:
+        assert any("--overwrite" in action.option_strings for action in commands[name]._actions), name
+
+
+def test_an_output_that_cannot_be_written_names_it_and_the_cause(capture_case, tmp_path, capsys):
+    (tmp_path / "a_file").write_text("x")
+    for out in (tmp_path / "a_file" / "result", tmp_path / "a_file" / "deeper" / "result"):
+        assert _animate(capture_case, out) == 2
+        _one_line_error(capsys, f"{out}: cannot create the folder: {tmp_path / 'a_file'} is a file, not a folder")
+        assert ".partial-" not in capsys.readouterr().err
+    # single-file outputs: the plan, a mesh
+    plan = tmp_path / "a_file" / "plan.json"
+    assert main(["plan-scans", "--markers", str(capture_case.markers_path), "--out", str(plan)]) == 2
+    _one_line_error(capsys, f"{plan}: cannot write: {tmp_path / 'a_file'} is a file, not a folder")
+    if Path("/proc/self").is_dir():  # the issue's own example, where the system refuses it (Linux)
+        assert _animate(capture_case, "/proc/nope") == 2
+        _one_line_error(capsys, "/proc/nope: cannot create the folder: /proc takes no new files")
+        assert main(["plan-scans", "--markers", str(capture_case.markers_path), "--out", "/proc/plan.json"]) == 2
+        _one_line_error(capsys, "/proc/plan.json: cannot write: /proc takes no new files")
+    assert (tmp_path / "a_file").read_text() == "x" and not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
+
+
+def test_an_existing_plan_is_kept_without_overwrite(capture_case, tmp_path, capsys):
+    plan = tmp_path / "plan.json"
+    assert main(["-q", "plan-scans", "--markers", str(capture_case.markers_path), "--out", str(plan)]) == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.glob("plan*")}
+    assert sorted(before) == ["plan.conditioned.npz", "plan.json", "plan.png"]
+    assert main(["-q", "plan-scans", "--markers", str(capture_case.markers_path), "--out", str(plan),
+                 "--tolerance", "0.01"]) == 2
+    _one_line_error(capsys, f"{plan}: exists; pass --overwrite")
+    assert {p.name: p.read_bytes() for p in tmp_path.glob("plan*")} == before
+    assert main(["-q", "plan-scans", "--markers", str(capture_case.markers_path), "--out", str(plan),
+                 "--tolerance", "0.01", "--overwrite"]) == 0
+    assert json.loads(plan.read_text())["tolerance"] != json.loads(before["plan.json"])["tolerance"]
+    assert json.loads(plan.read_text())["markers"] == "take.c3d"  # beside the plan: recorded relative to it
+
+
+def test_every_recorded_path_is_final(capture_case, tmp_path, monkeypatch):
+    """A job run as a user runs it (relative paths, another working folder) and inside a folder being built."""
+    from recorded_paths import assert_recorded_paths_are_final
+
+    from facecap.io._atomic import atomic_folder
+
+    # relative paths from the inputs' folder, the result elsewhere
+    monkeypatch.chdir(tmp_path)
+    assert main(["-q", "animate", "--scan", "scan.obj", "--markers", "take.c3d", "--map", "map.json",
+                 "--out", "results/res", "--stabilize", "auto", "--export", "gltf"]) == 0
+    info = json.loads((tmp_path / "results" / "res" / "performance.json").read_text())
+    assert info["source_files"] == {"scan": str(tmp_path / "scan.obj"), "markers": str(tmp_path / "take.c3d")}
+    assert info["map"] == str(tmp_path / "map.json")
+    assert ": res</title>" in (tmp_path / "results" / "res" / "report.html").read_text()
+    assert assert_recorded_paths_are_final(tmp_path / "results") >= 10  # the files listed, the sources
+
+    # as the demo does: the inputs and the job's folder inside a folder that is itself being built
+    with atomic_folder(tmp_path / "project", marker_file="done.json") as stage:
+        (stage / "inputs").mkdir()
+        for name in ("scan.obj", "take.c3d", "map.json"):
+            (stage / "inputs" / name).write_bytes((tmp_path / name).read_bytes())
+        inputs = stage / "inputs"
+        assert main(["-q", "animate", "--scan", str(inputs / "scan.obj"), "--markers", str(inputs / "take.c3d"),
+                     "--map", str(inputs / "map.json"), "--out", str(stage / "animation"), "--stabilize", "auto",
+                     "--export", "mdd"]) == 0
+        assert main(["-q", "plan-scans", "--markers", str(inputs / "take.c3d"), "--out", str(stage / "plan.json")]) == 0
+        (stage / "done.json").write_text("{}")
+    project = tmp_path / "project"
+    info = json.loads((project / "animation" / "performance.json").read_text())
+    assert info["source_files"]["scan"] == str(project / "inputs" / "scan.obj")
+    assert json.loads((project / "plan.json").read_text())["markers"] == "inputs/take.c3d"  # inside: relative
+    assert assert_recorded_paths_are_final(project) >= 10
+
+
+# The file arguments that read a mesh, a take or a marker map, by their dest; a command added with one of
+# these options is checked too. info's FILE reads takes and meshes.
+_FILE_ARGUMENTS = {"scan": ("mesh",), "scans": ("mesh",), "template": ("mesh",), "template_texture": ("mesh",),
+                   "markers": ("take",), "map": ("map",)}
+
+
+def test_help_names_every_format_each_file_argument_reads():
+    import argparse
+
+    from facecap.cli import build_parser
+    from facecap.io import MAP_FORMATS, MARKER_FORMATS, MESH_FORMATS
+
+    formats = {"mesh": MESH_FORMATS, "take": MARKER_FORMATS, "map": MAP_FORMATS}
+    commands = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction)).choices
+    checked = set()
+    for command, parser in commands.items():
+        page = " ".join(parser.format_help().split())  # as --help prints it, line breaks aside
+        for action in parser._actions:
+            kinds = ("take", "mesh") if (command, action.dest) == ("info", "file") else _FILE_ARGUMENTS.get(action.dest)
+            if not kinds:
+                continue
+            for kind in kinds:
+                for suffix, name in formats[kind].items():
+                    assert name in action.help and suffix in action.help, (command, action.dest, action.help)
+                    assert f"{name} (" in page and suffix in page, (command, action.dest)
+            checked.add((command, action.dest))
+    assert {("animate", "scan"), ("animate", "markers"), ("animate", "map"), ("info", "file"),
+            ("plan-scans", "markers"), ("register-scans", "scans"), ("register-scans", "template"),
+            ("blend", "markers"), ("scans-pipeline", "markers"), ("remove-wrinkles", "scan"),
+            ("build-anatomy", "scan"), ("solve-muscles", "markers"), ("solve-muscles", "map")} <= checked
+
+
+def test_info_prints_text_with_the_unit_warning_and_labels_on_request(tmp_path, capsys):
+    from facecap.io import write_mesh
+    from facecap.structures import Mesh
+
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=np.float64)
+    head = Mesh(corners * [248.0, 338.0, 223.0], [[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                                                   [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+    path = write_mesh(head, tmp_path / "head.obj", unit="cm")
+    capsys.readouterr()
+    assert main(["info", str(path)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert out.startswith("head.obj: mesh (OBJ)") and "pass --units cm" in out
+    assert main(["info", str(path), "--units", "cm"]) == 0
+    assert "warning" not in capsys.readouterr().out
+    take = MarkerSequence(np.random.default_rng(0).normal(scale=50.0, size=(3, 20, 3)),
+                          [f"dot{i}" for i in range(20)], 100.0)
+    write_markers(take, tmp_path / "take.csv")
+    assert main(["info", str(tmp_path / "take.csv")]) == 0
+    assert "and 12 more (--labels lists them all)" in " ".join(capsys.readouterr().out.split())
+    assert main(["info", str(tmp_path / "take.csv"), "--labels"]) == 0
+    listed = [line.split()[-1] for line in capsys.readouterr().out.splitlines() if "dot" in line]
+    assert listed == list(take.labels)

@@ -31,23 +31,32 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
         "optionally stabilised and filtered, mapped onto the scan by a triharmonic space warp, "
         "and drive a linear thin shell at the scan's full resolution.",
     )
-    p.add_argument("--scan", required=True, help="face scan: .obj, .ply or .glb")
+    p.add_argument("--scan", required=True, help=f"face scan: {_formats_read('mesh')}")
     p.add_argument("--scan-units", default="mm",
                    help="length unit of the scan file (files do not say): mm, cm, m, in, or auto (the unit the "
                         "markers' size suggests, with a notice); a unit the markers' size contradicts stops [mm]")
-    p.add_argument("--markers", required=True, help="mocap take: .c3d, .trc or .csv")
+    p.add_argument("--markers", required=True, help=f"mocap take: {_formats_read('take')}")
     p.add_argument("--marker-units", default=None, help="override the unit the marker file declares")
-    p.add_argument("--map", required=True, help="JSON map: marker label -> scan vertex index or 3D point")
+    p.add_argument("--map", required=True,
+                   help=f"marker map, {_formats_read('map')}: marker label -> scan vertex index or 3D point")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--rest-frame", type=int, default=0, help="frame whose expression matches the scan [0]")
     p.add_argument("--ks", type=float, default=DEFAULT_KS, help=f"stretching stiffness, dimensionless [{DEFAULT_KS}]")
     p.add_argument("--kb", type=float, default=DEFAULT_KB_MM2, help=f"bending stiffness in mm^2 [{DEFAULT_KB_MM2}]")
     p.add_argument(
-        "--stabilize", default="off",
-        help="remove rigid head motion: 'off', 'auto' (a head band when there is one, else the pose most "
-             "markers agree on per frame, nothing on a still head), 'consensus' (that pose always) or "
-             "comma-separated labels [off]",
+        "--stabilize", default="auto",
+        help="remove rigid head motion: 'auto' (a head band when there is one, else the pose most "
+             "markers agree on per frame, nothing on a still head), 'consensus' (that pose always), "
+             "comma-separated labels of skull or head-band markers, or 'off' [auto]",
     )
+    p.add_argument("--rest-pose", choices=("auto", "scan", "expression"), default="auto",
+                   help="what the rest frame's mismatch with the scan is: 'scan' (the rest frame shows the scan's "
+                        "expression; the warp maps it onto the scan), 'expression' (the actor rests with an "
+                        "expression of their own, kept as motion), 'auto' (measured; kept when it lies along the "
+                        "take's motion, clearly above the noise, with a note) [auto]")
+    p.add_argument("--neutral", default=None, metavar="A:B|TAKE",
+                   help="an explicit neutral reference instead of the rest frame: frames A <= t < B of this take in "
+                        "which the actor holds the scan's expression, or a separate neutral take file")
     p.add_argument("--no-smooth", action="store_true", help="skip the spatio-temporal bilateral filter")
     p.add_argument("--temporal-sigma", default="auto", type=_temporal_sigma,
                    help="the filter's temporal sigma in s, or 'auto': chosen for the take by cross-validation [auto]")
@@ -56,6 +65,7 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rest-average", type=float, default=0.1,
                    help="the warp's rest markers: Gaussian average round --rest-frame, sigma in s; 0: that frame alone [0.1]")
     _add_output_options(p)
+    _add_overwrite(p)
     p.add_argument("--unmarked-pieces", choices=("carry", "rigid"), default="carry",
                    help="pieces with no marker (eyes, teeth): follow the nearest marked surface, or stay [carry]")
     p.add_argument("--batch-frames", type=int, default=32, help="frames per dense product [32]")
@@ -70,8 +80,11 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
     from .io.read_mesh import read_mesh
+    from .io._atomic import recorded_path
+    from .io.write_performance import check_result_destination
     from .units import check_take_units
 
+    check_result_destination(args.out, overwrite=args.overwrite)  # before reading anything
     auto = args.scan_units.strip().lower() == "auto"
     scan = read_mesh(args.scan, unit=None if auto else args.scan_units)
     take = read_markers(args.markers, unit=args.marker_units)
@@ -81,13 +94,14 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     stabilize = _stabilize_option(args.stabilize)
     if args.batch_frames < 1:
         raise FacecapError(f"--batch-frames: expected a positive integer, got {args.batch_frames}")
+    neutral = _neutral_option(args.neutral, take, args.marker_units)
     result = animate_scan(
         scan, take, corr, args.out,
         rest_frame=args.rest_frame, ks=args.ks, kb=args.kb, stabilize=stabilize,
         smooth=not args.no_smooth, temporal_sigma_s=args.temporal_sigma, marker_offset_mm=args.marker_offset,
-        rest_average_s=args.rest_average, **_output_options(args), unmarked_pieces=args.unmarked_pieces,
+        rest_average_s=args.rest_average, rest_pose=args.rest_pose, neutral=neutral, **_output_options(args), unmarked_pieces=args.unmarked_pieces,
         batch_frames=args.batch_frames, precision=args.precision, progress=not args.quiet,
-        extra_metadata={"map": str(args.map)},
+        extra_metadata={"map": recorded_path(args.map, folder=args.out)}, overwrite=args.overwrite,
     )
     if not args.quiet:
         t = result.report["timings"]
@@ -97,40 +111,155 @@ def _cmd_animate(args: argparse.Namespace) -> int:
             f"wrote {result.out_dir}: {result.report['n_frames']} frames x {result.report['n_vertices']} vertices "
             f"from {result.report['n_markers']} markers (set-up {t['shell_setup_s']:.1f} s, {speed})"
         )
+        print(_head_motion_line(result.report["head_motion"]))
+        print(f"rest frame: {result.report['rest_pose']['reason']}")
         if result.report["warp_outliers"]:
             print(f"check these markers' scan vertices (large leave-one-out warp residual): "
                   f"{', '.join(result.report['warp_outliers'])}")
     return 0
 
 
+def _head_motion_line(head: dict) -> str:
+    """One line on the head motion a run found and removed (``report.json``'s ``head_motion``)."""
+    if not head["stabilized"]:
+        return ("head motion: left as captured" + (" (--stabilize off)" if head["mode"] == "off" else
+                " (the head does not move beyond what the expressions move the markers by)"))
+    line = (f"head motion: removed, up to {head['max_rotation_deg']:.1f} degrees and {head['max_translation_mm']:.1f} mm, "
+            f"pose from the {head['pose_from']}")
+    if head["stable_markers"]:
+        line += f" (rigid set: {', '.join(head['stable_markers'])})"
+    return line
+
+
+def _neutral_option(text: str | None, take: Any, marker_units: str | None) -> Any:
+    """``--neutral``: a frame range ``A:B`` of the take, or a neutral take file (read with the take's unit option)."""
+    if text is None:
+        return None
+    from pathlib import Path
+
+    from .deform.rest_pose import parse_frame_range
+    from .io.read_markers import read_markers
+
+    if ":" in text and not Path(text).exists():
+        return parse_frame_range(text, take.n_frames)
+    return read_markers(text, unit=marker_units)
+
+
 def _add_info(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("info", help="what a marker file, mesh or result folder holds")
-    p.add_argument("file", help="a .c3d/.trc/.csv take, an .obj/.ply/.glb mesh, or a facecap output folder")
-    p.add_argument("--units", default=None, help="length unit of a mesh file (default mm)")
+    p = sub.add_parser(
+        "info", help="what a take, a mesh or a result folder holds",
+        description="What a take, a mesh or a result folder holds, with a warning where a mesh or take has a size "
+        "no face has (and the length unit that would give it one).",
+    )
+    p.add_argument("file", help=f"a take: {_formats_read('take')}; a mesh: {_formats_read('mesh')}; "
+                                f"a facecap result folder; or a marker map, {_formats_read('map')}, with --scan and "
+                                "--markers")
+    p.add_argument("--units", default=None,
+                   help="length unit of the file: mm, cm, m or in; a mesh file states none [mm], a take's own is "
+                        "overridden [the take's]")
+    p.add_argument("--labels", action="store_true", help="list every marker label of a take, with its gaps")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
+    check = p.add_argument_group("checking a marker map (FILE is the map)")
+    check.add_argument("--scan", default=None, help=f"the scan the map refers to: {_formats_read('mesh')}")
+    check.add_argument("--scan-units", default="mm", help="length unit of the scan file [mm]")
+    check.add_argument("--markers", default=None, help=f"the take the map is for: {_formats_read('take')}")
+    check.add_argument("--rest-frame", type=int, default=0, help="frame whose expression is nearest the scan's [0]")
+    check.add_argument("--marker-offset", type=float, default=1.5, help="marker centre height above the skin, mm [1.5]")
     p.set_defaults(func=_cmd_info)
 
 
 def _cmd_info(args: argparse.Namespace) -> int:
-    from .report.describe import describe_file
+    from .report.describe import describe_file, format_description
 
+    if args.scan is not None or args.markers is not None or args.file.lower().endswith(".json"):
+        return _check_map(args)
     info = describe_file(args.file, unit=args.units)
     if args.json:
         print(json.dumps(info, indent=2))
     else:
-        _print_info(info)
+        print(format_description(info, labels=args.labels))
     return 0
 
 
-def _print_info(info: dict, indent: str = "") -> None:
-    for key, value in info.items():
-        if isinstance(value, dict):
-            print(f"{indent}{key}:")
-            _print_info(value, indent + "  ")
-        elif isinstance(value, list) and value and isinstance(value[0], str) and len(value) > 8:
-            print(f"{indent}{key}: {', '.join(value)}")
-        else:
-            print(f"{indent}{key}: {value}")
+def _check_map(args: argparse.Namespace) -> int:
+    """``facecap info MAP --scan SCAN --markers TAKE``: a marker map checked against its take."""
+    from .io.read_correspondence import read_correspondence
+    from .io.read_markers import read_markers
+    from .io.read_mesh import read_mesh
+    from .registration.check_marker_map import check_marker_map
+
+    if args.scan is None or args.markers is None:
+        raise FacecapError(f"{args.file}: a marker map is checked against its scan and take: pass --scan SCAN "
+                           "and --markers TAKE")
+    scan = read_mesh(args.scan, unit=args.scan_units)
+    take = read_markers(args.markers)
+    corr = read_correspondence(args.file, scan)
+    report = check_marker_map(scan, take, corr, rest_frame=args.rest_frame, marker_offset_mm=args.marker_offset)
+    if args.json:
+        print(json.dumps({k: v for k, v in report.items() if k != "summary"}, indent=2))
+    else:
+        print("\n".join(report["summary"]))
+    return 0
+
+
+def _add_map(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "map", help="find each marker's place on the scan (writes map.json, with a report and a picture)",
+        description="Find where each marker of a take sits on a face scan, with no hand-picked vertices: the rest "
+        "frame's markers are aligned to the scan's surface by a global search and snapped to the skin under them. "
+        "Writes the map (points on the scan in its file's unit) and, beside it, a report and a labelled picture "
+        "(--out map.json: map_report.json, map.png). Markers off the skin (a head band), over a hole or past the "
+        "scan's rim are left out and named; docs/own_data.md explains every line.",
+    )
+    p.add_argument("--scan", required=True, help=f"face scan: {_formats_read('mesh')}")
+    p.add_argument("--scan-units", default="mm",
+                   help="length unit of the scan file (files do not say): mm, cm, m, in, or auto (the unit the "
+                        "markers' size suggests, with a notice) [mm]")
+    p.add_argument("--markers", required=True, help=f"mocap take: {_formats_read('take')}")
+    p.add_argument("--marker-units", default=None, help="override the unit the marker file declares")
+    p.add_argument("--rest-frame", type=int, default=0, help="frame whose expression is nearest the scan's [0]")
+    p.add_argument("--marker-offset", type=float, default=1.5,
+                   help="marker centre height above the skin, mm [1.5]")
+    p.add_argument("--landmarks", default=None,
+                   help="a few markers' places on the scan, in map.json's own format (label -> vertex index or "
+                        "point), at least 3: they fix the pose instead of the global search")
+    p.add_argument("--out", required=True, help="the map file to write, e.g. map.json")
+    _add_overwrite(p, "an existing map, report or picture")
+    p.set_defaults(func=_cmd_map)
+
+
+def _cmd_map(args: argparse.Namespace) -> int:
+    from .io.read_correspondence import read_correspondence
+    from .io.read_markers import read_markers
+    from .io.read_mesh import read_mesh
+    from .registration.map_markers import map_markers
+
+    auto = args.scan_units.strip().lower() == "auto"
+    scan = read_mesh(args.scan, unit=None if auto else args.scan_units)
+    take = read_markers(args.markers, unit=args.marker_units)
+    landmarks = None if args.landmarks is None else read_correspondence(args.landmarks, scan)
+    report = map_markers(scan, take, args.out, rest_frame=args.rest_frame, marker_offset_mm=args.marker_offset,
+                         landmarks=landmarks, convert_scan_units=auto, overwrite=args.overwrite)
+    if not args.quiet:
+        print("\n".join(report["summary"]))
+    return 0
+
+
+def _formats_read(kind: str) -> str:
+    """The formats facecap reads for one kind of file, as help text, from the reader's own list.
+
+    ``kind`` is ``'mesh'``, ``'take'`` or ``'map'``; each format is named with its
+    suffixes, e.g. ``'OBJ (.obj), PLY (.ply), glTF (.glb, .gltf)'``.
+    """
+    from .io.read_correspondence import MAP_FORMATS
+    from .io.read_markers import MARKER_FORMATS
+    from .io.read_mesh import MESH_FORMATS
+
+    formats = {"mesh": MESH_FORMATS, "take": MARKER_FORMATS, "map": MAP_FORMATS}[kind]
+    suffixes: dict[str, list[str]] = {}
+    for suffix, name in formats.items():
+        suffixes.setdefault(name, []).append(suffix)
+    return ", ".join(f"{name} ({', '.join(found)})" for name, found in suffixes.items())
 
 
 def _add_evaluate(sub: argparse._SubParsersAction) -> None:
@@ -165,12 +294,27 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_overwrite(p: argparse.ArgumentParser, what: str = "an earlier result in --out") -> None:
+    """``--overwrite``: without it a command refuses, before any work, to replace what is there."""
+    p.add_argument("--overwrite", action="store_true",
+                   help=f"replace {what} (without it the command stops at once, changing nothing; a folder that "
+                        "is not a facecap result is never replaced)")
+
+
+def _add_export_frame(p: argparse.ArgumentParser) -> None:
+    """``--export-frame``: what the point caches and Alembic hold."""
+    p.add_argument("--export-frame", choices=("stabilized", "world"), default="stabilized",
+                   help="point caches (mdd, pc2) and Alembic: the stabilised face, or the face in the world with the "
+                        "head motion baked in (written as performance_world.*) [stabilized]")
+
+
 def _add_output_options(p: argparse.ArgumentParser) -> None:
     """What a command that writes a result writes: exports, vertices.npy, the rig's precision."""
     from .io.export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES
     from .io.write_performance import EXPORT_FORMATS
 
     p.add_argument("--export", default="", help=f"exports, comma-separated: {', '.join(EXPORT_FORMATS)}")
+    _add_export_frame(p)
     p.add_argument("--no-vertices", action="store_true",
                    help="leave out vertices.npy: the result is the exact compact rig (rig/) alone")
     p.add_argument("--rig-precision", choices=("float32", "int16"), default="float32",
@@ -196,7 +340,7 @@ def _output_options(args: argparse.Namespace) -> dict:
         "write_vertices": not args.no_vertices,
         "rig_precision": args.rig_precision,
         "export_options": {"gltf_targets": args.gltf_targets, "review_vertices": args.review_vertices,
-                           "usd_shapes": args.usd_shapes},
+                           "usd_shapes": args.usd_shapes, "export_frame": args.export_frame},
     }
 
 
@@ -249,6 +393,8 @@ def _add_export(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--review-vertices", type=int, default=None, help="most vertices of the glTF review mesh [100000]")
     p.add_argument("--usd-shapes", default=None, type=_usd_shapes_option,
                    help="blend shapes of the USD rig: exact, a count, or auto [auto]")
+    _add_export_frame(p)
+    _add_overwrite(p, "export files that exist already (an export otherwise only adds files)")
     p.set_defaults(func=_cmd_export)
 
 
@@ -260,7 +406,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
     result = read_result(args.result)
     options = {k: v for k, v in (("gltf_targets", args.gltf_targets), ("review_vertices", args.review_vertices),
                                  ("usd_shapes", args.usd_shapes)) if v is not None}
-    report = export_result(result, formats, out_dir=args.out, progress=not args.quiet, **options)
+    report = export_result(result, formats, out_dir=args.out, progress=not args.quiet, export_frame=args.export_frame,
+                           overwrite=args.overwrite, **options)
     if not args.quiet:
         for fmt, entry in report.items():
             sizes = ", ".join(f"{name} ({size / 1e6:.1f} MB)" if isinstance(size, int) and not name.endswith("/")
@@ -293,7 +440,7 @@ def _stabilize_option(value: str) -> bool | str | list[str]:
 
 def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("plan-scans", help="choose the fewest expressions to scan (Huang et al. 2011, Alg. 1)")
-    p.add_argument("--markers", required=True, help="mocap take: .c3d, .trc or .csv")
+    p.add_argument("--markers", required=True, help=f"mocap take: {_formats_read('take')}")
     p.add_argument("--tolerance", type=float, default=0.003,
                    help="reconstruction tolerance, fraction of the marker bounding-box diagonal [0.003]")
     p.add_argument("--max-scans", type=int, default=None, help="stop after this many scans")
@@ -302,48 +449,57 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
                    help="'auto', 'consensus' (no head band: the pose most markers agree on), 'off' or "
                         "comma-separated labels [auto]")
     p.add_argument("--out", required=True, help="plan.json to write (the plot goes beside it)")
+    _add_overwrite(p, "an existing plan (--out, its .png and .conditioned.npz)")
     p.set_defaults(func=_cmd_plan_scans)
 
     p = sub.add_parser("register-scans", help="register one scan per planned frame into one topology")
     p.add_argument("--plan", required=True, help="plan.json from plan-scans")
-    p.add_argument("--markers", required=True, help="the take the plan was made from")
-    p.add_argument("--scans", required=True, nargs="+", help="one scan per planned frame, in the plan's order")
+    p.add_argument("--markers", required=True, help=f"the take the plan was made from: {_formats_read('take')}")
+    p.add_argument("--scans", required=True, nargs="+",
+                   help=f"one scan per planned frame, in the plan's order: {_formats_read('mesh')}")
     p.add_argument("--scan-units", default="mm", help="length unit of the scan files: mm, cm, m, in or auto [mm]")
-    p.add_argument("--template", default=None, help="mesh giving the output topology (default: the first scan)")
+    p.add_argument("--template", default=None,
+                   help=f"mesh giving the output topology (default: the first scan): {_formats_read('mesh')}")
     p.add_argument("--template-units", default="mm", help="length unit of the template file: mm, cm, m, in or auto [mm]")
     p.add_argument("--marker-offset", type=float, default=1.5, help="marker centre height above the skin, mm [1.5]")
     p.add_argument("--template-texture", default=None,
                    help="a coloured scan of the template's expression (e.g. the neutral's own scan), in the "
-                        "template's units: the skin colour the scans are aligned to")
+                        f"template's units: the skin colour the scans are aligned to; {_formats_read('mesh')}")
     p.add_argument("--color-alignment", action="store_true",
                    help="slide the registrations along the scans until the skin colours match the template's "
                         "(scans and template or --template-texture with vertex colours; experimental)")
     p.add_argument("--refine", action="store_true",
                    help="run the fine-scale (optical flow) registration of section 6.2 (experimental)")
     p.add_argument("--out", required=True, help="bases folder")
+    _add_overwrite(p, "an earlier bases folder in --out")
     p.set_defaults(func=_cmd_register_scans)
 
     p = sub.add_parser("blend", help="reconstruct a take from registered bases (NNLS blendshapes)")
     p.add_argument("--bases", required=True, help="bases folder from register-scans")
-    p.add_argument("--markers", required=True, help="mocap take")
+    p.add_argument("--markers", required=True, help=f"mocap take: {_formats_read('take')}")
     _add_output_options(p)
     p.add_argument("--out", required=True, help="output folder")
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_blend)
 
     p = sub.add_parser("scans-pipeline", help="plan-scans, register-scans and blend in one go (scans exist)")
-    p.add_argument("--markers", required=True)
-    p.add_argument("--scans", required=True, nargs="+", help="one scan per planned frame, in the plan's order")
+    p.add_argument("--markers", required=True, help=f"mocap take: {_formats_read('take')}")
+    p.add_argument("--scans", required=True, nargs="+",
+                   help=f"one scan per planned frame, in the plan's order: {_formats_read('mesh')}")
     p.add_argument("--plan", default=None, help="an existing plan.json (default: plan now and expect matching scans)")
     p.add_argument("--tolerance", type=float, default=0.003)
     p.add_argument("--scan-units", default="mm")
-    p.add_argument("--template", default=None)
+    p.add_argument("--template", default=None,
+                   help=f"mesh giving the output topology (default: the first scan): {_formats_read('mesh')}")
     p.add_argument("--template-units", default="mm")
     p.add_argument("--marker-offset", type=float, default=1.5)
-    p.add_argument("--template-texture", default=None, help="coloured scan of the template's expression")
+    p.add_argument("--template-texture", default=None,
+                   help=f"coloured scan of the template's expression: {_formats_read('mesh')}")
     p.add_argument("--color-alignment", action="store_true", help="slide by skin colour (experimental)")
     p.add_argument("--refine", action="store_true", help="fine-scale registration (experimental)")
     _add_output_options(p)
     p.add_argument("--out", required=True, help="output folder (holds plan.json, bases/, animation/)")
+    _add_overwrite(p, "an earlier plan.json, bases/ and animation/ in --out")
     p.set_defaults(func=_cmd_scans_pipeline)
 
 
@@ -355,7 +511,7 @@ def _cmd_plan_scans(args: argparse.Namespace) -> int:
     out = Path(args.out)
     plan = plan_scans(args.markers, out, tolerance=args.tolerance, max_frames=args.max_scans,
                       rest_frame=args.rest_frame, stabilize=_stabilize_option(args.stabilize),
-                      plot_path=out.with_suffix(".png"), progress=not args.quiet)
+                      plot_path=out.with_suffix(".png"), progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {out}: scan {len(plan.frames)} expressions, frames {', '.join(map(str, plan.frames))} "
               f"(error {plan.error_after_each[-1]:.3f} mm, tolerance {plan.tolerance_mm:.3f} mm)")
@@ -370,7 +526,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
                                     marker_offset_mm=args.marker_offset, refine=args.refine,
                                     template_texture_path=args.template_texture,
                                     align_colors=args.color_alignment,
-                                    progress=not args.quiet)
+                                    progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:
         reg = report["registration_mm"]
         print(f"wrote {args.out}: {len(reg)} bases, registration residual mean {sum(reg) / len(reg):.3f} mm, "
@@ -381,7 +537,8 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
 def _cmd_blend(args: argparse.Namespace) -> int:
     from .blendshapes.scan_workflow import blend_take
 
-    report = blend_take(args.bases, args.markers, args.out, **_blend_options(args), progress=not args.quiet)
+    report = blend_take(args.bases, args.markers, args.out, **_blend_options(args), progress=not args.quiet,
+                        overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {args.out}: {report['n_frames']} frames from {report['n_bases']} bases, "
               f"marker residual mean {report['marker_residual_mm']['mean']:.3f} mm")
@@ -395,20 +552,30 @@ def _blend_options(args: argparse.Namespace) -> dict:
 def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans
+    from .blendshapes.scan_workflow import blend_take, conditioned_take_path, plan_scans, register_planned_scans
+    from .io._atomic import check_file_destination, check_folder_destination, ensure_folder
+    from .io.registered_scans import BASES_MARKER_FILE
+    from .io.write_performance import check_result_destination
 
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     plan_path = Path(args.plan) if args.plan else out / "plan.json"
+    # everything the three steps would replace, refused before the first one starts
+    if not args.plan and out.is_dir():
+        for path in (plan_path, conditioned_take_path(plan_path), out / "plan.png"):
+            check_file_destination(path, overwrite=args.overwrite)
+    check_folder_destination(out / "bases", marker_file=BASES_MARKER_FILE, overwrite=args.overwrite)
+    check_result_destination(out / "animation", overwrite=args.overwrite)
+    ensure_folder(out)
     if not args.plan:
         plan_scans(args.markers, plan_path, tolerance=args.tolerance, plot_path=out / "plan.png",
-                   progress=not args.quiet)
+                   progress=not args.quiet, overwrite=args.overwrite)
     register_planned_scans(plan_path, args.markers, args.scans, out / "bases", template_path=args.template,
                            scan_unit=args.scan_units, template_unit=args.template_units,
                            marker_offset_mm=args.marker_offset, refine=args.refine,
                            template_texture_path=args.template_texture,
-                           align_colors=args.color_alignment, progress=not args.quiet)
-    report = blend_take(out / "bases", args.markers, out / "animation", **_blend_options(args), progress=not args.quiet)
+                           align_colors=args.color_alignment, progress=not args.quiet, overwrite=args.overwrite)
+    report = blend_take(out / "bases", args.markers, out / "animation", **_blend_options(args), progress=not args.quiet,
+                        overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {out}: plan.json, bases/, animation/ ({report['n_frames']} frames)")
     return 0
@@ -431,6 +598,7 @@ def _add_synth(sub: argparse._SubParsersAction) -> None:
                    help="with --footage: render from the scan refined around the wrinkles to this edge length, so "
                         "the images shade the truth's valleys, not their sampling at the scan's vertices "
                         "(about 8 s per video frame at the default scan); 0: render the scan itself [0.3]")
+    _add_overwrite(p, "an earlier case in --out")
     p.set_defaults(func=_cmd_synth)
 
 
@@ -454,7 +622,7 @@ def _cmd_synth(args: argparse.Namespace) -> int:
             raise FacecapError(f"--render-edge: expected 0 (off) or a finite length of at least {MIN_RENDER_EDGE_MM:g} "
                                f"mm, got {args.render_edge:g}")
     identity = random_identity(args.identity) if args.identity else None
-    with atomic_folder(args.out, marker_file="truth.npz") as stage:
+    with atomic_folder(args.out, marker_file="truth.npz", overwrite=args.overwrite) as stage:
         if args.footage:
             from .synth.write_footage_case import RENDER_EDGE_MM, write_footage_case
 
@@ -509,6 +677,8 @@ def _add_wrinkles(sub: argparse._SubParsersAction) -> None:
                    help="refuse a camera that sees less of the face's vertices at video frame 0 (a calibration "
                         "not of this stage); 0 for a close-up camera on a small part of a large scan [0.05]")
     p.add_argument("--export", default="", help="exports, comma-separated, as for animate")
+    _add_export_frame(p)
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_wrinkles)
 
 
@@ -557,7 +727,8 @@ def _cmd_wrinkles(args: argparse.Namespace) -> int:
                             first_mocap_frame=first, depth_scale=args.depth_scale, scheduler=scheduler,
                             n_workers=args.workers, work_dir=args.work, exports=parse_export_formats(args.export),
                             anchor=not args.per_frame_projection, edits=edits,
-                            min_face_in_view=args.min_face_in_view, progress=not args.quiet)
+                            min_face_in_view=args.min_face_in_view, progress=not args.quiet,
+                            export_options={"export_frame": args.export_frame}, overwrite=args.overwrite)
     if not args.quiet:
         t = done.timings
         print(f"wrote {done.out_dir}: wrinkles on {done.n_video_frames} video frames (tracking {t['tracking_s']:.1f} s, "
@@ -569,11 +740,12 @@ def _add_remove_wrinkles(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("remove-wrinkles",
                        help="smooth the wrinkles out of a neutral scan in a region, keeping its fine detail "
                             "(Bickel et al. 2007, 5.4)")
-    p.add_argument("--scan", required=True, help="the neutral scan: .obj, .ply or .glb")
+    p.add_argument("--scan", required=True, help=f"the neutral scan: {_formats_read('mesh')}")
     p.add_argument("--scan-units", default="mm", help="length unit of the scan file [mm]")
     p.add_argument("--region", required=True,
                    help="the wrinkle region: a JSON list of vertex indices, or a .npy bool mask per vertex")
     p.add_argument("--out", required=True, help="the scan without its wrinkles (.obj or .ply)")
+    _add_overwrite(p, "an existing file --out")
     p.set_defaults(func=_cmd_remove_wrinkles)
 
 
@@ -610,8 +782,10 @@ def _region_mask(path: str, n_vertices: int) -> Any:
 def _cmd_remove_wrinkles(args: argparse.Namespace) -> int:
     from .io.read_mesh import read_mesh
     from .io.write_mesh import write_mesh
+    from .io._atomic import check_file_destination
     from .wrinkles import remove_wrinkles
 
+    check_file_destination(args.out, overwrite=args.overwrite)
     scan = read_mesh(args.scan, unit=args.scan_units)
     mask = _region_mask(args.region, scan.n_vertices)
     smooth = remove_wrinkles(scan, mask)
@@ -624,12 +798,13 @@ def _cmd_remove_wrinkles(args: argparse.Namespace) -> int:
 def _add_build_anatomy(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("build-anatomy",
                        help="bone, a tetrahedral soft-tissue mesh and 36 muscles inside a scan (Sifakis et al. 2005)")
-    p.add_argument("--scan", required=True, help="the neutral scan: .obj, .ply or .glb")
+    p.add_argument("--scan", required=True, help=f"the neutral scan: {_formats_read('mesh')}")
     p.add_argument("--scan-units", default="mm", help="length unit of the scan file [mm]")
     p.add_argument("--out", required=True, help="model folder (anatomy.npz, anatomy.json, layout.png)")
     p.add_argument("--landmarks", default=None,
                    help="JSON landmarks (name -> vertex index or point); not needed for scans in the ICT topology")
     p.add_argument("--tets", type=int, default=100_000, help="tetrahedra to aim for [100000]")
+    _add_overwrite(p, "an earlier model in --out")
     p.set_defaults(func=_cmd_build_anatomy)
 
 
@@ -637,13 +812,14 @@ def _cmd_build_anatomy(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from .anatomy import build_anatomy, render_anatomy_layout
-    from .io._atomic import atomic_folder
+    from .io._atomic import atomic_folder, check_folder_destination
     from .io.read_mesh import read_mesh
 
+    check_folder_destination(args.out, marker_file="anatomy.json", overwrite=args.overwrite)  # before the build
     scan = read_mesh(args.scan, unit=args.scan_units)
     anatomy = build_anatomy(scan, landmarks=args.landmarks, n_tets=args.tets, progress=not args.quiet)
     # the model and its picture appear together or not at all
-    with atomic_folder(args.out, marker_file="anatomy.json") as stage:
+    with atomic_folder(args.out, marker_file="anatomy.json", overwrite=args.overwrite) as stage:
         render_anatomy_layout(anatomy, Path(stage) / "layout.png")
         anatomy.save(stage)
     if not args.quiet:
@@ -661,10 +837,10 @@ def _add_solve_muscles(sub: argparse._SubParsersAction) -> None:
         "bone_transforms.npz and activations.png.",
     )
     p.add_argument("--model", required=True, help="anatomy model folder (facecap build-anatomy)")
-    p.add_argument("--markers", required=True, help="mocap take: .c3d, .trc or .csv")
+    p.add_argument("--markers", required=True, help=f"mocap take: {_formats_read('take')}")
     p.add_argument("--marker-units", default=None, help="override the unit the marker file declares")
     p.add_argument("--map", required=True,
-                   help="JSON map: marker label -> vertex index or 3D point of the model's scan")
+                   help=f"marker map, {_formats_read('map')}: marker label -> vertex index or 3D point of the model's scan")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--rest-frame", type=int, default=0, help="frame whose expression matches the scan [0]")
     p.add_argument("--frames", default=None, metavar="A:B", help="solve only take frames A <= frame < B [all]")
@@ -695,19 +871,24 @@ def _add_solve_muscles(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--marker-noise", type=float, default=None,
                    help="expected marker noise, mm (the penalty's starting weight) [the solver's, 0.2]")
     p.add_argument("--export", default="", help="exports, comma-separated, as for animate")
+    _add_export_frame(p)
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_solve_muscles)
 
 
 def _cmd_solve_muscles(args: argparse.Namespace) -> int:
     from pathlib import Path
 
+    from .io._atomic import recorded_path
     from .io.export_result import parse_export_formats
     from .io.read_markers import read_markers
+    from .io.write_performance import check_result_destination
     from .muscles import solve_muscle_take
 
     if args.workers < 1 or args.chunk_frames < 1:
         raise FacecapError("--workers and --chunk-frames: expected positive integers")
     exports = parse_export_formats(args.export)  # before any long work
+    check_result_destination(args.out, overwrite=args.overwrite)
     model = Path(args.model)
     if not model.is_dir():
         raise FacecapError("no such model folder (make one with facecap build-anatomy)", path=str(model))
@@ -726,7 +907,8 @@ def _cmd_solve_muscles(args: argparse.Namespace) -> int:
                              temporal_sigma_s=args.temporal_sigma, frames=args.frames, scheduler=scheduler,
                              n_workers=args.workers, work_dir=args.work, chunk_frames=args.chunk_frames,
                              exports=exports, solver_options=options, progress=not args.quiet,
-                             extra_metadata={"map": str(args.map)})
+                             extra_metadata={"map": recorded_path(args.map, folder=args.out)},
+                             export_options={"export_frame": args.export_frame}, overwrite=args.overwrite)
     if not args.quiet:
         r = done.report
         t = r["timings"]
@@ -761,6 +943,8 @@ def _add_edit_muscles(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--model", default=None, help="the anatomy model folder [the one performance.json names]")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--export", default="", help="exports, comma-separated, as for animate")
+    _add_export_frame(p)
+    _add_overwrite(p)
     p.set_defaults(func=_cmd_edit_muscles)
 
 
@@ -776,7 +960,8 @@ def _cmd_edit_muscles(args: argparse.Namespace) -> int:
     done = edit_muscles(args.result, args.out, scale_force_length=args.scale_force_length,
                         interpolate=None if args.interpolate is None else tuple(args.interpolate),
                         n_frames=30 if args.frames is None else args.frames, sphere=args.sphere, sphere_to=args.sphere_to, model_dir=args.model,
-                        exports=exports, progress=not args.quiet)
+                        exports=exports, progress=not args.quiet, export_options={"export_frame": args.export_frame},
+                        overwrite=args.overwrite)
     if not args.quiet:
         r = done.report
         line = (f"wrote {done.out_dir}: {done.n_frames} frames ({r['edit']['kind']}), "
@@ -792,13 +977,14 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("demo", help="run the main job on the bundled sample, writing facecap-demo/")
     p.add_argument("--out", default="facecap-demo", help="output folder [facecap-demo]")
     p.add_argument("--frames", type=int, default=300, help="frames of the generated take [300]")
+    _add_overwrite(p, "an earlier demo in --out (a second run needs it)")
     p.set_defaults(func=_cmd_demo)
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
     from .demo import run_demo
 
-    summary = run_demo(args.out, n_frames=args.frames, progress=not args.quiet)
+    summary = run_demo(args.out, n_frames=args.frames, progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:
         for line in summary:
             print(line)
@@ -816,6 +1002,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_animate(sub)
     _add_info(sub)
+    _add_map(sub)
     _add_evaluate(sub)
     _add_export(sub)
     _add_view(sub)

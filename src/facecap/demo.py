@@ -11,7 +11,10 @@
 4. Animates the same face from the real AnimFace take (``animface/``), and solves a stretch of
    it for muscle activations on an anatomical model of the face (``muscles/``).
 
-Everything is written into a staging folder renamed into place at the end.
+Everything is written into a staging folder renamed into place at the end. A second run into
+the same folder is refused (one line, before any work) unless ``overwrite`` (``--overwrite``) is
+given: pictures, exports or notes added to an earlier demo folder are never deleted unasked.
+Every path the demo's files record is where the file lies once the folder is in place.
 """
 
 from __future__ import annotations
@@ -24,24 +27,28 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FacecapWarning, InputError
-from .io._atomic import atomic_folder
+from .io._atomic import atomic_folder, recorded_path
 
 __all__ = ["run_demo"]
 
 _DEMO_MARKER = "demo_summary.json"
 
 
-def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progress: bool = True) -> list[str]:
+def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progress: bool = True,
+             overwrite: bool = False) -> list[str]:
     """Run the demo and return printable summary lines.
 
     Parameters
     ----------
     out_dir : str or Path, default 'facecap-demo'
-        Output folder; replaced if it holds an earlier demo.
+        Output folder. An earlier demo there is replaced only with ``overwrite``
+        (else refused before any work); any other non-empty folder is refused.
     n_frames : int, default 300
         Frames of the generated take (60 Hz).
     progress : bool, default True
         Progress bars.
+    overwrite : bool, default False
+        Replace an earlier demo in ``out_dir``.
 
     Returns
     -------
@@ -64,7 +71,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     out = Path(out_dir)
     lines: list[str] = []
     t_start = time.perf_counter()
-    with atomic_folder(out, marker_file=_DEMO_MARKER) as stage:
+    with atomic_folder(out, marker_file=_DEMO_MARKER, overwrite=overwrite) as stage:
         pictures = stage / "pictures"
         pictures.mkdir()
         sample = load_ict_sample()
@@ -81,7 +88,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
             warnings.simplefilter("ignore", FacecapWarning)  # head-band markers not in the map: expected
             result = animate_scan(
                 scan, take, corr, stage / "animation", stabilize=True, exports=("usd",), progress=progress,
-                extra_metadata={"map": "inputs/map.json"},
+                extra_metadata={"map": recorded_path(files.map, folder=stage / "animation")},
             )
         shell_error = evaluate_result(files.truth, result.out_dir)
         view_result(result.out_dir, truth=files.truth)  # the glTF, review.html with the error heat map, report.html
@@ -107,8 +114,11 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
         busy = int(np.argmax(np.abs(truth_v - truth_v[0]).reshape(n_frames, -1).mean(axis=1)))
         shell_err_v = np.linalg.norm(vertices[busy] - truth_v[busy], axis=1)
         warp_err_v = np.linalg.norm(warp_only[busy] - truth_v[busy], axis=1)
-        vmax = float(np.percentile(np.concatenate([shell_err_v, warp_err_v]), 99))
-        render_side_by_side(
+        # one colour scale for every dense-error map of the generated take (this picture and the methods'
+        # comparison), set by the thin shell at its busiest frame: the warp alone goes past it (the arrow)
+        error_vmax = float(np.percentile(shell_err_v, 99))
+        picture_ranges: dict[str, list[float]] = {}
+        drawn = render_side_by_side(
             [
                 MeshPanel(truth_v[busy], F, None, f"ground truth, frame {busy}"),
                 MeshPanel(np.asarray(vertices[busy]), F, None, "facecap (thin shell)"),
@@ -116,9 +126,12 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
                 MeshPanel(warp_only[busy], F, warp_err_v, "warp alone error"),
             ],
             pictures / "frame_comparison.png",
-            value_label="error (mm)", vmin=0.0, vmax=vmax,
-            title=f"Generated take, frame {busy}: dense error against ground truth",
+            value_label="error (mm)", vmin=0.0, vmax=error_vmax,
+            title=f"Generated take, frame {busy} (the busiest): dense error against ground truth",
+            caption=f"One colour scale here and in methods_error_comparison.png: 0 to {error_vmax:.2f} mm, the thin "
+                    "shell's 99th percentile at this frame; larger errors (the warp alone's neck) in the top colour.",
         )
+        picture_ranges["frame_comparison.png"] = [drawn.vmin, drawn.vmax]
         for frame in sorted({0, busy, worst}):
             render_mesh(np.asarray(vertices[frame]), F, pictures / f"result_frame_{frame:04d}.png",
                         title=f"facecap result, frame {frame}")
@@ -137,7 +150,8 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
                     title="Marker conditioning: filter change and head-stabilisation residual")
 
         # --- the scan workflow (Huang et al. 2011) on the same take and face
-        scan_lines = _scan_workflow(stage, case, files, shell_error, vertices, busy, progress)
+        scan_lines = _scan_workflow(stage, case, files, shell_error, vertices, error_vmax, progress)
+        picture_ranges.update(scan_lines.pop("picture_ranges"))
 
         # --- the real take on the same face
         real_lines = _animate_real_take(stage, sample, progress, render_mesh, plot_series)
@@ -161,6 +175,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
             "muscles": muscle_lines["summary"],
             "wrinkles": wrinkle_lines["summary"],
             "seconds": time.perf_counter() - t_start,
+            "picture_colour_ranges_mm": picture_ranges,
         }
         for key in ("thin_shell", "warp_alone"):
             for drop in ("per_frame_mean_mm", "per_frame_max_mm"):
@@ -188,12 +203,15 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     return lines
 
 
-def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, frame: int, progress: bool) -> dict:
+def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, error_vmax: float, progress: bool) -> dict:
     """Plan scans on the generated take, "scan" those expressions, register them and blend the take.
 
     The scans come from the ground truth through the scanner simulation
     (:func:`~facecap.synth.scan_expression.scan_expression`: new sampling,
-    noise, holes, own frame), so the blend can be scored like the thin shell.
+    noise, holes, own frame), so the blend can be scored like the thin shell. The two methods are
+    compared at a frame that was not scanned (a scanned frame is one of the blend's own bases):
+    the one the plan rebuilds worst from its markers, on the colour scale ``error_vmax`` (mm)
+    of ``frame_comparison.png``.
     """
     from .blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans
     from .report import MeshPanel, plot_series, render_side_by_side
@@ -213,20 +231,25 @@ def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, frame:
     blended = np.load(root / "blend" / "vertices.npy", mmap_mode="r")
     truth_v = case.truth_vertices
     F = case.scan.faces
+    unscanned = np.setdiff1d(np.arange(truth_v.shape[0]), plan.frames)
+    frame = int(unscanned[np.argmax(plan.per_frame_residual[unscanned])])
     shell_err_v = np.linalg.norm(np.asarray(shell_vertices[frame]) - truth_v[frame], axis=1)
     blend_err_v = np.linalg.norm(np.asarray(blended[frame]) - truth_v[frame], axis=1)
-    vmax = float(np.percentile(np.concatenate([shell_err_v, blend_err_v]), 99))
-    render_side_by_side(
+    drawn = render_side_by_side(
         [
-            MeshPanel(truth_v[frame], F, None, f"ground truth, frame {frame}"),
+            MeshPanel(truth_v[frame], F, None, f"ground truth, frame {frame} (not scanned)"),
             MeshPanel(np.asarray(shell_vertices[frame]), F, shell_err_v,
                       f"thin shell (Bickel): mean {shell_err_v.mean():.2f} mm"),
             MeshPanel(np.asarray(blended[frame]), F, blend_err_v,
                       f"{len(plan.frames)} scans blended (Huang): mean {blend_err_v.mean():.2f} mm"),
         ],
         pictures / "methods_error_comparison.png",
-        value_label="error (mm)", vmin=0.0, vmax=vmax,
-        title=f"Generated take, frame {frame}: the two methods' dense error",
+        value_label="error (mm)", vmin=0.0, vmax=error_vmax,
+        title=f"Generated take, frame {frame}: the two methods' dense error at a frame that was not scanned",
+        caption=f"Scanned frames: {', '.join(map(str, plan.frames))} (at those the blend has its own scan). Frame "
+                f"{frame} is the unscanned frame the {len(plan.frames)} scans rebuild worst from its markers "
+                f"({plan.per_frame_residual[frame]:.2f} mm RMS).\nOne colour scale for both methods and "
+                f"frame_comparison.png: 0 to {error_vmax:.2f} mm.",
     )
     plot_series(case.markers.times, {"thin shell (mean)": shell_error.per_frame_mean_mm,
                                      "scans blended (mean)": blend_error.per_frame_mean_mm},
@@ -235,6 +258,7 @@ def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, frame:
     worst_registration = float(np.nanmax(registration["registration_mm"]))
     summary = {
         "planned_frames": [int(f) for f in plan.frames],
+        "compared_frame": frame,
         "error_after_each_mm": [float(e) for e in plan.error_after_each],
         "registration_mm": registration["registration_mm"],
         "blend": {k: v for k, v in blend_error.to_dict().items() if k not in ("per_frame_mean_mm", "per_frame_max_mm")},
@@ -245,7 +269,8 @@ def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, frame:
         f"  blended scans dense error: mean {blend_error.mean_mm:.3f} mm, p95 {blend_error.p95_mm:.3f} mm, "
         f"max {blend_error.max_mm:.3f} mm",
     ]
-    return {"summary": summary, "lines": lines}
+    return {"summary": summary, "lines": lines,
+            "picture_ranges": {"methods_error_comparison.png": [drawn.vmin, drawn.vmax]}}
 
 
 def _animate_real_take(stage: Path, sample, progress: bool, render_mesh, plot_series) -> dict:
@@ -262,7 +287,8 @@ def _animate_real_take(stage: Path, sample, progress: bool, render_mesh, plot_se
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FacecapWarning)
         result = animate_scan(sample.mesh, take, corr, stage / "animface", stabilize=True, progress=progress,
-                              extra_metadata={"map": "ict_generic_map.json (bundled)"})
+                              extra_metadata={"map": recorded_path(bundled_path("ict_generic_map.json"),
+                                                                   folder=stage / "animface")})
     V = np.load(result.out_dir / "vertices.npy", mmap_mode="r")
     F = sample.mesh.faces
     n0 = igl.per_face_normals(sample.mesh.vertices, F, np.array([0.0, 0.0, 1.0]))
@@ -314,9 +340,22 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
     animate's warp (``retarget='auto'`` finds that the actor's face is not the scan's). The frames lead up
     to the take's busiest one, a frown whose 15 mm brow motion is beyond what the model's corrugators reach
     (its frames are flagged ``large_residual``: the demo shows that too).
+
+    The frown is measured, not assumed: the inner brows' distances to the inner eye corners and to each
+    other in the raw take (distances between markers, so the head's motion does not enter) shrink by
+    5-8 mm at the busiest frame (631). The brow lowerers (corrugators, procerus) then rise to 1, the
+    solve's bound (full activation): at full strength, with the bones at rest, the model's brow markers
+    move 1-4 mm where the take asks 7-9 mm down (measured on one build of this model with the forward
+    solve), so the solve also turns the cranium about 2.4 degrees (which lowers the brows further) and
+    5-10 mm stay on the brow markers. The solve is right within its model's reach (docs/muscles.md, "The
+    reach"); the activation picture says so on its face.
     """
+    from scipy.spatial.transform import Rotation
+
     from .anatomy import build_anatomy, render_anatomy_layout
-    from .muscles import solve_muscle_take
+    from .io.read_markers import read_markers
+    from .muscles import FRAME_FLAG_MEANINGS, solve_muscle_take
+    from .muscles.solve_muscle_take import _plot_activations
     from .report import MeshPanel, render_side_by_side
     from .synth.ict_sample import bundled_path
 
@@ -331,12 +370,41 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
         done = solve_muscle_take(folder / "model", bundled_path("eyebrows.c3d"), bundled_path("ict_generic_map.json"),
                                  folder / "animface", frames=(first, first + _MUSCLE_DEMO_FRAMES),
                                  scheduler="synchronous", chunk_frames=_MUSCLE_DEMO_FRAMES, progress=progress,
-                                 extra_metadata={"map": "ict_generic_map.json (bundled)"})
-    (pictures / "muscles_activations.png").write_bytes((done.out_dir / "activations.png").read_bytes())
+                                 extra_metadata={"map": recorded_path(bundled_path("ict_generic_map.json"),
+                                                                      folder=folder / "animface")})
     report = done.report
     V = np.load(done.out_dir / "vertices.npy", mmap_mode="r")
     shell = np.load(stage / "animface" / "vertices.npy", mmap_mode="r")
     j = int(np.clip(busiest - first, 0, V.shape[0] - 1))
+    names = list(anatomy.muscle_names)
+    table = np.loadtxt(done.out_dir / "activations.csv", delimiter=",", skiprows=1)
+    frames, A = table[:, 0].astype(np.int64), table[:, 1:]
+    strongest = [names[i] for i in np.argsort(-A.max(axis=0))[:3]]
+    at_bound = [names[i] for i in np.flatnonzero(A.max(axis=0) >= 1.0 - 1e-3)]
+    lowerers = [name for name in at_bound if name.startswith(("corrugator", "procerus", "depressor_supercilii"))]
+    flag_counts: dict[str, int] = {}
+    for frame_flags in report["flags"].values():
+        for flag in frame_flags:
+            flag_counts[flag] = flag_counts.get(flag, 0) + 1
+    flagged_said = "; ".join(f"{flag}: {FRAME_FLAG_MEANINGS.get(flag, flag)}" for flag in sorted(flag_counts))
+    brows = _brow_change(read_markers(bundled_path("eyebrows.c3d")), first + j)
+    residual = report["marker_residual_mm"]
+    at_j = {label: r for label, r in zip(residual["labels"], residual["per_frame"][j]) if r is not None}
+    worst_markers = sorted(at_j, key=at_j.get, reverse=True)[:4]
+    performance = json.loads((done.out_dir / "performance.json").read_text())
+    _plot_activations(
+        pictures / "muscles_activations.png", frames, float(performance["rate"]), tuple(names), A, report, performance,
+        title=f"Real take (AnimFace), frames {first}-{first + _MUSCLE_DEMO_FRAMES - 1}: muscle activations "
+              f"into {brows['expression']}",
+        caption=f"At frame {first + j} {brows['said']} (marker distances in the raw take).\n"
+                f"{len(at_bound)} muscles reach 1, full activation (the solve's bound)"
+                + (f", among them the brow lowerers ({', '.join(lowerers)}): the model at full strength does not "
+                   "move the brows as far as the markers do" if lowerers else "") + ".\n"
+                f"Shaded: {report['frames_flagged']} of {len(frames)} frames flagged ({flagged_said}); at frame "
+                f"{first + j}: " + ", ".join(f"{m} {at_j[m]:.1f} mm" for m in worst_markers) + ".")
+    # the solved cranium's turn (the nearest rotation to its affine part): the head the muscle face carries
+    turn_deg = float(np.degrees(Rotation.from_matrix(np.load(done.out_dir / "bone_transforms.npz")["cranium"][j][:, :3])
+                                .magnitude()))
     rest = sample.mesh.vertices
     muscle_motion = np.linalg.norm(np.asarray(V[j], np.float64) - rest, axis=1)
     shell_motion = np.linalg.norm(np.asarray(shell[first + j], np.float64) - rest, axis=1)
@@ -346,10 +414,10 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
         pictures / "muscles_frame_comparison.png", value_label="displacement from rest (mm)", vmin=0.0,
         vmax=float(np.percentile(np.concatenate([shell_motion, muscle_motion]), 99)),
         title=f"Real take (AnimFace), frame {first + j}: the thin shell and the muscle-driven face",
+        caption=f"Both in the scan's frame, the take's head motion removed. The muscle face also carries its solved "
+                f"cranium, turned {turn_deg:.1f} degrees here:\nthe solve tilts the head to bring the brows nearer the "
+                "markers than its muscles can, hence the neck's colour.",
     )
-    names = list(anatomy.muscle_names)
-    A = np.loadtxt(done.out_dir / "activations.csv", delimiter=",", skiprows=1)[:, 1:]
-    strongest = [names[i] for i in np.argsort(-A.max(axis=0))[:3]]
     summary = {
         "frames": [first, first + _MUSCLE_DEMO_FRAMES], "tetrahedra": int(anatomy.n_tets),
         "muscles": len(names), "markers": report["n_markers"], "markers_left_out": report["markers_left_out"],
@@ -357,6 +425,8 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
         "marker_rms_median_frame_mm": float(np.nanmedian(np.asarray(report["marker_residual_mm"]["per_frame_rms"],
                                                                     dtype=np.float64))),
         "frames_flagged": report["frames_flagged"],
+        "flags": {flag: {"frames": n, "meaning": FRAME_FLAG_MEANINGS.get(flag, flag)} for flag, n in flag_counts.items()},
+        "expression": brows["said"], "muscles_at_full_activation": at_bound,
         "inverted_tets_max": int(max(report["inverted_tets"])), "activation_max": float(A.max()),
         "strongest_muscles": strongest, "seconds": report["timings"]["total_s"],
     }
@@ -366,10 +436,44 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
             f"muscles: {anatomy.n_tets} tetrahedra, {len(names)} muscles, real take frames {first}-"
             f"{first + _MUSCLE_DEMO_FRAMES - 1} from {report['n_markers']} markers: marker rms "
             f"{summary['marker_rms_mm']:.2f} mm (median frame {summary['marker_rms_median_frame_mm']:.2f}), "
-            f"{report['frames_flagged']} frames flagged, strongest {', '.join(strongest)} "
-            f"({report['timings']['total_s']:.0f} s)",
+            f"strongest {', '.join(strongest)} ({report['timings']['total_s']:.0f} s)",
+            f"  {report['frames_flagged']} of {len(frames)} frames flagged ("
+            + "; ".join(f"{n} {flag}: {FRAME_FLAG_MEANINGS.get(flag, flag)}" for flag, n in sorted(flag_counts.items()))
+            + (f"): {brows['expression']} beyond the model's reach" if "large_residual" in flag_counts else ")")
+            + ", see pictures/muscles_activations.png",
         ],
     }
+
+
+def _brow_change(take, frame: int, rest_frame: int = 0) -> dict:
+    """How the inner brows moved between the rest frame and ``frame`` of the AnimFace take, from marker distances.
+
+    Distances between markers do not see the head's motion, so no stabilisation enters: each inner
+    brow's distance to its inner eye corner, and the inner brows' distance to each other. Both shrink in a
+    frown (brows lowered and drawn together), the first grows in a brow raise.
+
+    Returns
+    -------
+    dict
+        ``expression`` ('a frown', 'a brow raise' or 'no clear brow motion'), ``said`` (the figures in
+        words), ``to_eye_mm`` (left, right change), ``between_mm`` (change), negative = nearer.
+    """
+    P = np.asarray(take.positions, dtype=np.float64)
+    index = {label: i for i, label in enumerate(take.labels)}
+
+    def change(a: str, b: str) -> float:
+        d = np.linalg.norm(P[[rest_frame, frame], index[a]] - P[[rest_frame, frame], index[b]], axis=1)
+        return float(d[1] - d[0])
+
+    to_eye = (change("Leyebrow_Inside", "Leye_Inside"), change("Reyebrow_Inside", "Reye_Inside"))
+    between = change("Leyebrow_Inside", "Reyebrow_Inside")
+    expression = ("a frown" if max(to_eye) < -2.0 and between < -2.0 else
+                  "a brow raise" if min(to_eye) > 2.0 else "no clear brow motion")
+    said = (f"{expression}: each inner brow {-to_eye[0]:.1f} and {-to_eye[1]:.1f} mm nearer its eye, the brows "
+            f"{-between:.1f} mm nearer each other" if expression == "a frown" else
+            f"{expression}: inner brows {to_eye[0]:+.1f} and {to_eye[1]:+.1f} mm from the eyes, {between:+.1f} mm "
+            "from each other")
+    return {"expression": expression, "said": said, "to_eye_mm": to_eye, "between_mm": between}
 
 
 def _wrinkle_layer(stage: Path, progress: bool) -> dict:
@@ -378,6 +482,12 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     Video frame 0 is the neutral scan, frames 1-2 every wrinkle-making expression at once. Pictures: the
     footage with the tracked valley splines, one fitted cross-section against the observed intensities,
     and the large scale, the result with wrinkles and the truth side by side with the error heat maps.
+
+    The large scale is ``animate`` with its defaults. The take is neutral for only its first 3 frames
+    (60 ms at 50 Hz); before the rest average weighed each sample by its closeness to the rest frame, its
+    0.1 s Gaussian reached 13 frames and took about half of the smile into the rest pose (the picture's
+    "large scale" showed half the truth's smile; with the head also left unstabilised it was 2.8 mm off the
+    truth's large scale at frame 8, now 0.86 mm, where the rest frame alone gives 0.82).
     """
     import matplotlib
 
@@ -404,17 +514,18 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     files = write_footage_case(folder / "inputs", n_frames=9, seed=2,
                                curves=every_wrinkle_at_once(9, load_ict_sample().expression_names), progress=progress)
     scan = read_mesh(files.scan)
+    take = read_markers(files.markers)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", FacecapWarning)  # head-band markers not in the map: expected
-        animate_scan(scan, read_markers(files.markers), read_correspondence(files.map, scan), folder / "large_scale",
-                     progress=progress)
+        animate_scan(scan, take, read_correspondence(files.map, scan), folder / "large_scale", progress=progress)
     setup = read_camera_file(files.cameras)
     done = capture_wrinkles(folder / "large_scale", setup.cameras, files.videos, files.masks, folder / "result",
                             video_rate_hz=setup.video_rate_hz, progress=progress)
     truth = np.load(files.truth)
     A = read_result(folder / "large_scale").frames().astype(np.float64)
     W = read_result(folder / "result").frames().astype(np.float64)
-    t, video = 8, 2
+    t = 8  # the last mocap frame, a video frame: every wrinkle at its deepest
+    video = int(round((t - setup.first_mocap_frame) * setup.video_rate_hz / take.rate))
     true = (truth["vertices"][t] - truth["large_scale"][t]).astype(np.float64)
     added = W[t] - A[t]
     wrinkle = np.linalg.norm(true, axis=1) > 0.1
@@ -423,22 +534,10 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     outside = float(np.linalg.norm(added, axis=1)[~truth["wrinkle_mask"]].max())
     pictures = stage / "pictures"
 
-    # the footage with the tracked splines
     camera = setup.cameras[0]
     image = read_image(files.videos[0] / f"frame_{video:06d}.png")
     doc = json.loads((done.out_dir / "wrinkles.json").read_text())
-    fig, ax = plt.subplots(figsize=(11, 8.3), dpi=100)
-    ax.imshow(np.clip(image.astype(np.float64) / np.iinfo(image.dtype).max / 0.8, 0, 1) ** (1 / 2.2))
-    for entry in doc["frames"][video]["wrinkles"]:
-        spline = entry["splines_px"].get(camera.name)
-        if spline:
-            P = np.asarray(spline)
-            ax.plot(P[:, 0], P[:, 1], "-", color="cyan", lw=1.2)
-    ax.set_axis_off()
-    ax.set_title(f"{camera.name}, video frame {video}: the tracked valley splines (eq. 5)")
-    with atomic_path(pictures / "wrinkles_tracked_splines.png") as tmp:
-        fig.savefig(tmp, format="png", bbox_inches="tight")
-    plt.close(fig)
+    frame_said = f"video frame {video} = mocap frame {t} ({t / take.rate:.2f} s)"
 
     # one fitted cross-section against the observed intensities
     correspondence = read_mocap_correspondence(folder / "large_scale" / "correspondence.npz")
@@ -457,37 +556,77 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     best = int(np.flatnonzero(deep)[np.argmin(fit.rms[deep])])
     valid = samples.valid[best]
     p = samples.p
-    fig, ax = plt.subplots(figsize=(7, 4), dpi=110)
+    # which true wrinkle the cross-section lies on, and the truth there: the generator's valley lines of this
+    # frame (scan frame) carried into the mocap frame and projected, the nearest point to the section's centre
+    to_mocap = truth["mocap_from_scan"] @ truth["head_pose"][t]
+    lines_px = camera.project(truth["curve_points"][t] @ to_mocap[:3, :3].T + to_mocap[:3, 3]).pixels
+    on_line = np.linalg.norm(lines_px - samples.centres_px[best], axis=-1)
+    curve, point = np.unravel_index(np.nanargmin(on_line), on_line.shape)
+    on_truth = bool(on_line[curve, point] <= 10.0)  # px; farther: a valley tracked where the truth has none
+    wrinkle_name = str(truth["curve_names"][curve]) if on_truth else "(none of the truth's)"
+    true_w, true_d = ((float(truth["widths"][t, curve, point]), float(truth["depths"][t, curve, point])) if on_truth
+                      else (float("nan"), float("nan")))
+    fig, ax = plt.subplots(figsize=(8, 4.6), dpi=110)
     ax.plot(p[valid], samples.intensity[best, valid] / fit.ambient[best], ".", ms=3,
-            label="observed / unshadowed level")
+            label="observed intensity / unshadowed level")
     model = wedge_intensity(p - fit.offset[best], fit.width[best], fit.depth[best], rounding=DEFAULT_ROUNDING)
-    ax.plot(p, model, "-", label=f"eq. 6 fitted: w {fit.width[best]:.2f} mm, d {fit.depth[best]:.2f} mm")
+    ax.plot(p, model, "-", label=f"model (eq. 6) at the fitted w {fit.width[best]:.2f} mm, d {fit.depth[best]:.2f} mm")
+    if on_truth:
+        ax.plot(p, wedge_intensity(p - fit.offset[best], true_w, true_d, rounding=DEFAULT_ROUNDING), "--",
+                color="0.4", lw=1.0, label=f"model (eq. 6) at the true w {true_w:.2f} mm, d {true_d:.2f} mm")
     ax.set_xlabel("distance across the valley (mm)")
     ax.set_ylabel("intensity ratio")
-    ax.set_title("A fitted cross-section (eq. 7)")
-    ax.legend(fontsize=8)
+    ax.set_title(f"Wrinkle {wrinkle_name}, {camera.name}, {frame_said}:\none cross-section, its width w and depth d "
+                 "fitted by eq. 7 to the shading model of eq. 6", fontsize=10)
+    ax.legend(fontsize=8, loc="lower right")
     with atomic_path(pictures / "wrinkles_cross_section.png") as tmp:
         fig.savefig(tmp, format="png", bbox_inches="tight")
     plt.close(fig)
 
-    # the frame: large scale, with wrinkles, truth; the error against adding nothing
-    forehead = truth["wrinkle_mask"]
-    lo, hi = A[t][forehead].min(axis=0), A[t][forehead].max(axis=0)
-    bounds = [lo[0] - 5, hi[0] + 5, lo[1] - 5, hi[1] + 5]
+    # the footage with the tracked splines, and where that cross-section lies
+    fig, ax = plt.subplots(figsize=(11, 8.3), dpi=100)
+    ax.imshow(np.clip(image.astype(np.float64) / np.iinfo(image.dtype).max / 0.8, 0, 1) ** (1 / 2.2))
+    for entry in doc["frames"][video]["wrinkles"]:
+        spline = entry["splines_px"].get(camera.name)
+        if spline:
+            P = np.asarray(spline)
+            ax.plot(P[:, 0], P[:, 1], "-", color="cyan", lw=1.2)
+    across = samples.centres_px[best] + np.outer([p[0], p[-1]], samples.normals_px[best]) / samples.mm_per_px[best]
+    ax.plot(across[:, 0], across[:, 1], "-", color="red", lw=2.0,
+            label=f"the cross-section of wrinkles_cross_section.png ({wrinkle_name})")
+    ax.legend(loc="lower left", fontsize=9)
+    ax.set_axis_off()
+    ax.set_title(f"{camera.name}, {frame_said}: the tracked valley splines (eq. 5)")
+    with atomic_path(pictures / "wrinkles_tracked_splines.png") as tmp:
+        fig.savefig(tmp, format="png", bbox_inches="tight")
+    plt.close(fig)
+
+    # the frame: large scale, with wrinkles, truth; the error against adding nothing. Whole meshes, framed
+    # alike (the default bounds: every panel's extent), so nothing is cut at the edges
     size = np.linalg.norm(true, axis=1)
     vmax = float(np.percentile(size[wrinkle], 99))
     F = scan.faces
+    symbols = ("A: the large scale (animate, from the markers); W: A with the wrinkle layer; "
+               "G: the truth (ground truth with wrinkles);\nL: the truth's large scale, G without its wrinkles. "
+               "The true wrinkles are G - L, the ones added W - A.")
     render_side_by_side(
-        [MeshPanel(A[t], F, None, "large scale (animate)"), MeshPanel(W[t], F, None, "with wrinkles"),
-         MeshPanel(truth["vertices"][t].astype(np.float64), F, None, "truth")],
-        pictures / "wrinkles_frame.png", title=f"Mocap frame {t}: the wrinkle layer", bounds=bounds)
+        [MeshPanel(A[t], F, None, "A: large scale (animate)"), MeshPanel(W[t], F, None, "W: with wrinkles"),
+         MeshPanel(truth["vertices"][t].astype(np.float64), F, None, "G: truth")],
+        pictures / "wrinkles_frame.png", title=f"{frame_said[0].upper()}{frame_said[1:]}: the wrinkle layer",
+        panel_size_px=(700, 860), caption=symbols)
     render_side_by_side(
-        [MeshPanel(A[t], F, size, "error of adding nothing |G - L|"),
-         MeshPanel(W[t], F, error, "error with wrinkles |(W - A) - (G - L)|")],
-        pictures / "wrinkles_error.png", value_label="mm", vmin=0.0, vmax=vmax, bounds=bounds,
-        title=f"Mocap frame {t}: wrinkle displacement error against the truth")
+        [MeshPanel(A[t], F, size, "adding nothing: |G - L|, the true wrinkles"),
+         MeshPanel(W[t], F, error, "with wrinkles: |(W - A) - (G - L)|")],
+        pictures / "wrinkles_error.png", value_label="wrinkle displacement error (mm)", vmin=0.0, vmax=vmax,
+        panel_size_px=(700, 860), caption=symbols,
+        title=f"Mocap frame {t}: the wrinkle displacement's error against the truth "
+              f"(over the wrinkles {ratio:.2f} of adding nothing)")
     seconds = time.perf_counter() - t0
+    large_scale_error = float(np.linalg.norm(A[t] - truth["large_scale"][t], axis=1).mean())
     summary = {"video_frames": done.n_video_frames, "ratio_to_adding_nothing": ratio,
+               "large_scale_mean_error_mm": large_scale_error, "cross_section": {
+                   "wrinkle": wrinkle_name, "width_mm": float(fit.width[best]), "depth_mm": float(fit.depth[best]),
+                   "true_width_mm": true_w, "true_depth_mm": true_d},
                "outside_wrinkle_mask_max_mm": outside, "timings": done.timings, "seconds": seconds}
     lines = [f"wrinkle layer: {done.n_video_frames} video frames, 2 cameras, {scan.n_vertices} vertices",
              f"  error over the wrinkles {ratio:.2f} of adding nothing (mocap frame {t}); "

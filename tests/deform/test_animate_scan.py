@@ -91,14 +91,17 @@ def test_refuses_to_overwrite_a_foreign_folder_but_replaces_a_result(capture_cas
     foreign = tmp_path / "mine"
     foreign.mkdir()
     (foreign / "notes.txt").write_text("precious")
-    with pytest.raises(InputError, match="refusing"):
-        _run(capture_case, foreign)
+    with pytest.raises(InputError, match="never replaces it"):
+        _run(capture_case, foreign, overwrite=True)
     assert (foreign / "notes.txt").read_text() == "precious"
     out = tmp_path / "result"
     _run(capture_case, out)
-    (out / "stale.txt").write_text("from an earlier run")
-    _run(capture_case, out)
-    assert not (out / "stale.txt").exists() and (out / "vertices.npy").exists()
+    (out / "added.txt").write_text("made since")
+    with pytest.raises(InputError, match="--overwrite"):
+        _run(capture_case, out)
+    assert (out / "added.txt").read_text() == "made since"
+    _run(capture_case, out, overwrite=True)
+    assert not (out / "added.txt").exists() and (out / "vertices.npy").exists()
 
 
 def test_exports_obj_and_usd(capture_case, tmp_path):
@@ -156,3 +159,78 @@ def test_head_motion_puts_the_face_where_the_capture_saw_it(tmp_path):
     stabilized = np.linalg.norm(V - truth, axis=2).mean()
     world = np.linalg.norm(moved(V, P) - moved(truth, H), axis=2).mean()
     assert world < stabilized, (world, stabilized)
+
+
+def _generated(tmp_path, **options):
+    """A generated take written as a user holds it, read back: (scan, take, map, truth case)."""
+    from facecap.synth import generate_performance, write_synthetic_case
+
+    case = generate_performance(n_frames=150, seed=21, headband_markers=0, head_rotation_deg=0.0,
+                                head_translation_mm=0.0, curves="real", **options)
+    files = write_synthetic_case(case, tmp_path / "case")
+    scan = read_mesh(files.scan)
+    return scan, read_markers(files.markers), read_correspondence(files.map, scan), case
+
+
+def _dense_error(out, case):
+    V = np.load(out / "vertices.npy")
+    return float(np.linalg.norm(V - case.truth_vertices, axis=2).mean())
+
+
+def test_a_resting_expression_is_kept_as_motion_by_default(tmp_path):
+    from facecap.errors import FacecapWarning
+    from facecap.synth import random_rest_expression
+
+    scan, take, corr, case = _generated(tmp_path, rest_expression=random_rest_expression(5, mean_mm=0.5))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        kept = animate_scan(scan, take, corr, tmp_path / "kept", progress=False)
+    said = [str(w.message) for w in caught if issubclass(w.category, FacecapWarning)]
+    assert sum(m.startswith("rest pose: holds an expression of its own") for m in said) == 1  # one line, said once
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        animate_scan(scan, take, corr, tmp_path / "absorbed", rest_pose="scan", progress=False)
+    report = kept.report["rest_pose"]
+    assert (report["mode"], report["chosen_by"]) == ("expression", "auto")
+    # against the truth, which holds the resting expression in every frame
+    rest_motion = float(np.linalg.norm(case.truth_vertices[0] - scan.vertices, axis=1).mean())
+    kept_error, absorbed_error = _dense_error(tmp_path / "kept", case), _dense_error(tmp_path / "absorbed", case)
+    assert kept_error < absorbed_error - 0.5 * rest_motion
+    # the report's mismatch is the truth's: the rest markers' distance from the scan's places
+    true_mismatch = np.linalg.norm(case.truth_vertices[0][case.marker_vertices] - scan.vertices[case.marker_vertices], axis=1)
+    assert report["mismatch_rms_mm"] == pytest.approx(np.sqrt(np.mean(true_mismatch**2)), rel=0.25)
+
+
+def test_a_neutral_rest_frame_is_mapped_onto_the_scan_and_a_neutral_range_is_obeyed(tmp_path):
+    scan, take, corr, case = _generated(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        auto = animate_scan(scan, take, corr, tmp_path / "auto", progress=False)
+        given = animate_scan(scan, take, corr, tmp_path / "given", neutral=(0, 3), progress=False)
+    assert auto.report["rest_pose"]["mode"] == "scan" and given.report["rest_pose"]["mode"] == "neutral_reference"
+    head = auto.report["head_motion"]
+    assert head["mode"] == "auto" and not head["stabilized"]  # a still head is left as captured
+    assert _dense_error(tmp_path / "given", case) < 1.1 * _dense_error(tmp_path / "auto", case)
+
+
+def test_the_rest_average_takes_out_head_motion_and_stops_where_the_face_moves():
+    from scipy.spatial.transform import Rotation
+
+    from facecap.deform.animate_scan import rest_average
+
+    rng = np.random.default_rng(2)
+    X = rng.normal(size=(40, 3)) * 40.0
+    T = 61
+    angles = np.linspace(0.0, 0.06, T)[:, None] * [0.0, 1.0, 0.0]  # 3.4 degrees over the window
+    P = np.einsum("tij,kj->tki", Rotation.from_rotvec(angles).as_matrix(), X)
+    noise = rng.normal(scale=0.1, size=P.shape)
+    # a head turning while the face holds still: the average is the rest frame, less its noise
+    averaged = rest_average(P + noise, 0, 10.0, noise_mm=0.1)
+    assert np.abs(averaged - X).max() < 0.15
+    # the face starts to smile 3 frames after the rest frame: the average stays at rest
+    smile = np.zeros_like(P)
+    smile[3:, :10] = np.linspace(0.5, 4.0, T - 3)[:, None, None] * [1.0, 0.0, 0.0]
+    with_noise = rest_average(X[None] + smile + noise, 0, 10.0, noise_mm=0.1)
+    without = rest_average(X[None] + smile + noise, 0, 10.0)
+    pulled_with, pulled_without = (with_noise - X)[:10, 0].mean(), (without - X)[:10, 0].mean()  # towards the smile
+    assert pulled_with < 0.5 * pulled_without and pulled_without > 0.1

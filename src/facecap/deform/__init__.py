@@ -5,6 +5,10 @@ In the order a user meets them:
 - :func:`animate_scan` (``animate_scan.py``): the whole job, from a scan, a
   take and a map to an output folder; :func:`prepare_markers` is its first
   stage (match, gap-fill, stabilise and filter the take).
+- :func:`choose_rest_pose` (``rest_pose.py``): where the warp puts the rest
+  markers (the scan's expression, an expression the actor holds at rest, or a
+  neutral reference: :func:`neutral_from_frames`, :func:`neutral_from_take`),
+  as a :class:`RestPose`; :data:`REST_POSES`, :func:`parse_frame_range`.
 - :class:`TriharmonicWarp` (``triharmonic_warp.py``): the mocap-to-scan space
   warp of section 4.1, ``TriharmonicWarp(m0, f0)(m_t)``.
 - :class:`ThinShellSolver` (``thin_shell.py``): the linear thin shell of
@@ -37,6 +41,7 @@ from .factor_spd import SpdFactor, available_backends
 from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, DEFAULT_OFFSET_ITERATIONS, MarkerOffsets, MarkerRing, marker_ring
 from .principal_targets import PrincipalTargets, principal_targets, principal_targets_from_rig
 from .rbf_deform import rbf_deformation_basis
+from .rest_pose import REST_POSES, RestPose, choose_rest_pose, neutral_from_frames, neutral_from_take, parse_frame_range
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, PieceReport, ThinShellSolver, thin_shell_deform
 from .triharmonic_warp import TriharmonicWarp, check_warp_sources
 
@@ -45,6 +50,12 @@ __all__ = [
     "AnimationResult",
     "prepare_markers",
     "PreparedMarkers",
+    "choose_rest_pose",
+    "RestPose",
+    "REST_POSES",
+    "neutral_from_frames",
+    "neutral_from_take",
+    "parse_frame_range",
     "TriharmonicWarp",
     "check_warp_sources",
     "ThinShellSolver",

@@ -20,7 +20,8 @@ from ..io.export_result import parse_export_formats
 from ..io.result_rig import ResultRig
 from ..io.write_performance import PerformanceWriter
 from ..markers.choose_temporal_sigma import TemporalSigmaChoice
-from ..markers.condition_take import condition_take
+from ..markers.condition_take import condition_take, moving_stable_markers
+from ..markers.consensus_stabilize import estimate_marker_noise
 from ..markers.rigid_fit import rigid_fit
 from ..mesh.check_mesh import check_mesh
 from ..structures import MarkerSequence, Mesh
@@ -29,12 +30,16 @@ from ..validate import as_positive
 from .basis_product import Precision
 from .factor_spd import Backend
 from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, MarkerOffsets, MarkerRing, marker_ring
+from .rest_pose import RestPose, choose_rest_pose, neutral_from_frames, neutral_from_take
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces
 from .triharmonic_warp import TriharmonicWarp, check_warp_sources
 
 __all__ = ["animate_scan", "AnimationResult", "prepare_markers", "PreparedMarkers"]
 
 _MIN_MARKERS = 4
+
+OFFSET_WARNING_MM = 0.5
+"""A marker offset the rest frame contradicts by more than this (mm) is named in a warning."""
 
 DEFAULT_REST_AVERAGE_S = 0.1
 """Half-width (Gaussian sigma, seconds) of the average that gives the warp its rest markers."""
@@ -70,6 +75,9 @@ class PreparedMarkers:
         The bilateral filter's temporal sigma (s); None when not filtered.
     temporal_sigma_choice : TemporalSigmaChoice or None
         Its cross-validation, when it was chosen for the take.
+    head_pose_from : str or None
+        Where the head pose came from (:data:`~facecap.markers.condition_take.HEAD_POSE_SOURCES`);
+        None when the take was not stabilised.
     """
 
     labels: tuple[str, ...]
@@ -85,6 +93,7 @@ class PreparedMarkers:
     notes: list[str] = field(default_factory=list)
     temporal_sigma_s: float | None = None
     temporal_sigma_choice: TemporalSigmaChoice | None = None
+    head_pose_from: str | None = None
 
 
 def prepare_markers(
@@ -93,7 +102,7 @@ def prepare_markers(
     correspondence: Correspondence,
     *,
     rest_frame: int = 0,
-    stabilize: bool | str | Sequence[str] = False,
+    stabilize: bool | str | Sequence[str] = True,
     smooth: bool = True,
     temporal_sigma_s: float | str = "auto",
 ) -> PreparedMarkers:
@@ -109,9 +118,11 @@ def prepare_markers(
         Marker label -> scan point map.
     rest_frame : int, default 0
         Frame whose expression matches the scan's.
-    stabilize : bool or sequence of str, default False
-        Remove rigid head motion: ``True`` picks the stable markers
-        automatically, a list of labels names them.
+    stabilize : bool, 'consensus' or sequence of str, default True
+        Remove rigid head motion: ``True`` finds the head pose automatically
+        (a head band, else the consensus of the skin markers, nothing on a
+        still head), ``'consensus'`` always from the skin markers, a list of
+        labels names the stable markers, ``False`` leaves the head as captured.
     smooth : bool, default True
         Apply the spatio-temporal bilateral filter (section 3).
     temporal_sigma_s : float or 'auto', default 'auto'
@@ -183,6 +194,7 @@ def prepare_markers(
         notes=notes,
         temporal_sigma_s=conditioned.temporal_sigma_s,
         temporal_sigma_choice=conditioned.temporal_sigma_choice,
+        head_pose_from=conditioned.head_pose_from,
     )
 
 
@@ -211,11 +223,13 @@ def animate_scan(
     rest_frame: int = 0,
     ks: float = DEFAULT_KS,
     kb: float = DEFAULT_KB_MM2,
-    stabilize: bool | str | Sequence[str] = False,
+    stabilize: bool | str | Sequence[str] = True,
     smooth: bool = True,
     temporal_sigma_s: float | str = "auto",
     marker_offset_mm: float = DEFAULT_MARKER_OFFSET_MM,
     rest_average_s: float = DEFAULT_REST_AVERAGE_S,
+    rest_pose: str = "auto",
+    neutral: tuple[int, int] | MarkerSequence | None = None,
     exports: Iterable[str] = (),
     write_vertices: bool = True,
     rig_precision: str = "float32",
@@ -226,6 +240,7 @@ def animate_scan(
     precision: Precision = "float32",
     progress: bool = True,
     extra_metadata: dict[str, Any] | None = None,
+    overwrite: bool = False,
 ) -> AnimationResult:
     """Animate a scan from a mocap take (Bickel et al. 2007, section 4) and write the result.
 
@@ -245,13 +260,15 @@ def animate_scan(
     out_dir : str or Path
         Output folder (see :class:`~facecap.io.write_performance.PerformanceWriter`).
     rest_frame : int, default 0
-        Frame of the take whose expression matches the scan.
+        The take's rest frame: stabilisation aligns every frame to it, and
+        the warp maps its markers onto the scan (see ``rest_pose``).
     ks, kb : float
         Stretching (dimensionless) and bending (mm^2) stiffness, see
         :class:`~facecap.deform.thin_shell.ThinShellSolver`.
-    stabilize : bool or sequence of str, default False
+    stabilize : bool, 'consensus' or sequence of str, default True
         Remove rigid head motion before deforming (the head motion is kept in
-        ``head_motion.npy`` and the USD export).
+        ``head_motion.npy`` and the USD export); see :func:`prepare_markers`.
+        ``True`` (``--stabilize auto``) leaves a still head as captured.
     smooth : bool, default True
         Spatio-temporal bilateral filtering of the markers.
     temporal_sigma_s : float or 'auto', default 'auto'
@@ -271,6 +288,23 @@ def animate_scan(
         ``rest_frame``, so the rest frame's noise does not offset every
         frame; assumes the face holds its rest expression that long (as the
         bilateral filter's rest does). 0: the rest frame alone (the paper).
+    rest_pose : {'auto', 'scan', 'expression'}, default 'auto'
+        What the rest frame's mismatch with the scan is (after a robust rigid
+        fit): 'scan' takes the rest frame to show the scan's expression, and
+        the warp maps its markers exactly onto the scan (the paper: a resting
+        expression is then taken out of every frame); 'expression' keeps the
+        mismatch as an expression the face holds (the warp absorbs only
+        markers that look misplaced in the map); 'auto' measures it
+        (:func:`~facecap.markers.measure_resting_expression`) and keeps it
+        when it is clearly above the noise and neighbouring markers share
+        it, as an expression moves the skin (a map picked by hand is off
+        marker by marker) (:func:`~facecap.deform.rest_pose.choose_rest_pose`),
+        with a warning that says so. The measurement goes to ``report.json``.
+    neutral : (int, int) or MarkerSequence or None, optional
+        An explicit neutral reference instead of the rest frame: frames
+        ``(A, B)`` of this take (``A <= t < B``) in which the actor holds the
+        scan's expression, or a separate neutral take with the same labels.
+        Its markers are mapped onto the scan; ``rest_pose`` is then ignored.
     exports : iterable of str
         Exports, see :data:`facecap.io.EXPORT_FORMATS`.
     write_vertices : bool, default True
@@ -295,6 +329,9 @@ def animate_scan(
         Show a progress bar.
     extra_metadata : dict, optional
         Added to ``performance.json`` (e.g. source file names).
+    overwrite : bool, default False
+        Replace an earlier result in ``out_dir``; without it one is refused
+        (:class:`~facecap.io.PerformanceWriter`; the CLI checks before any work).
 
     Returns
     -------
@@ -329,7 +366,21 @@ def animate_scan(
         )
         timings["condition_markers_s"] = time.perf_counter() - t
 
-        rest_markers = check_warp_sources(rest_average(prepared.positions, rest_frame, rest_average_s * markers.rate))
+        noise_mm = estimate_marker_noise(prepared.raw_positions)
+        noise_mm = float(noise_mm) if np.isfinite(noise_mm) else 0.0
+        rest_markers = check_warp_sources(rest_average(prepared.positions, rest_frame, rest_average_s * markers.rate,
+                                                       noise_mm=noise_mm))
+        neutral_markers = None
+        if isinstance(neutral, MarkerSequence):
+            neutral_markers, neutral_notes = neutral_from_take(neutral, prepared.labels, rest_markers)
+            prepared.notes.extend(neutral_notes)
+        elif neutral is not None:
+            neutral_markers = neutral_from_frames(prepared.positions, *neutral)
+        head_motion = _head_motion_report(prepared, stabilize, markers.labels, rest_frame)
+        for label, why in head_motion["moving_stable_markers"].items():
+            warnings.warn(f"the head pose rests on {label}, which may move with the face ({why}); name skull or "
+                          "head-band markers with --stabilize LABELS if the face looks like it nods", FacecapWarning,
+                          stacklevel=2)
 
         # Beside the set-up, on a second thread: its sparse solves keep one core busy, not two (measured
         # at 700k vertices). The mesh check (a report only: the shell handles what it finds on its own)
@@ -341,13 +392,23 @@ def animate_scan(
         t = time.perf_counter()
         with threadpool_limits(limits={"openblas": 1}):
             mesh_check_run = beside_setup.submit(_timed, check_mesh, scan.vertices, scan.faces)
-            marker_side_run = beside_setup.submit(_timed, _marker_side, scan, prepared, rest_markers, marker_offset_mm)
+            marker_side_run = beside_setup.submit(_timed, _marker_side, scan, prepared, rest_markers, marker_offset_mm,
+                                                  rest_pose, neutral_markers, noise_mm,
+                                                  _effective_samples(rest_average_s * markers.rate))
             stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
             solver = ThinShellSolver(
                 scan.vertices, scan.faces, prepared.constrained_vertices,
                 ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
             )
-            (ring, centres, warp, face_markers), timings["correspondence_warp_s"] = marker_side_run.result()
+            (ring, centres, warp, face_markers, chosen), timings["correspondence_warp_s"] = marker_side_run.result()
+        if chosen.warn:
+            warnings.warn(f"rest pose: {chosen.reason}", FacecapWarning, stacklevel=2)
+        offset_error = chosen.measurement.offset_error_mm
+        if abs(offset_error) > OFFSET_WARNING_MM and chosen.measurement.fits_scan:
+            warnings.warn(f"the rest frame's markers sit {abs(offset_error):.1f} mm {'further from' if offset_error > 0 else 'closer to'} "
+                          f"the skin than --marker-offset {marker_offset_mm:g} says: about {marker_offset_mm + offset_error:.1f} mm "
+                          "fits them (the warp absorbs the difference at rest; give the right offset so the motion "
+                          "is carried with it)", FacecapWarning, stacklevel=2)
         offsets = MarkerOffsets(scan.vertices, scan.faces, solver, marker_offset_mm=marker_offset_mm, ring=ring)
         timings["shell_setup_s"] = time.perf_counter() - t  # the shell and the offsets' part of it that needs it
         mesh_check, timings["check_mesh_s"] = mesh_check_run.result()
@@ -371,7 +432,7 @@ def animate_scan(
     lift = offsets.marker_offset_mm * (offsets.deformed_normals(displacements) if offsets.marker_offset_mm else 0.0)
     marker_residual = np.linalg.norm(prepared.scan_points[None] + displacements + lift - face_markers, axis=2)
     offset_correction = np.linalg.norm(displacements - marker_displacements, axis=2)
-    head_pose = (head_pose_in_scan(prepared, rest_markers, centres, rest_frame)
+    head_pose = (head_pose_in_scan(prepared, chosen.sources, chosen.targets, rest_frame)
                  if prepared.head_rotations is not None else None)
 
     T, n = markers.n_frames, scan.n_vertices
@@ -388,7 +449,8 @@ def animate_scan(
             "ks": ks, "kb_mm2": kb, "smooth": smooth, "temporal_sigma_s": prepared.temporal_sigma_s,
             "unmarked_pieces": unmarked_pieces,
             "marker_offset_mm": offsets.marker_offset_mm, "offset_iterations": offsets.iterations,
-            "rest_average_s": float(rest_average_s),
+            "rest_average_s": float(rest_average_s), "rest_pose": chosen.mode,
+            "stabilize": head_motion["mode"],
             "stable_markers": list(prepared.stable_labels), "backend": solver.backend,
             "precision": solver.product.precision,
             "product_error_bound_mm": solver.product.error_bound_mm(float(np.abs(disp32).max(initial=0.0))),
@@ -398,7 +460,7 @@ def animate_scan(
         **(extra_metadata or {}),
     }
     with PerformanceWriter(out_dir, mesh=scan, rate=markers.rate, n_frames=T, exports=exports,
-                           vertices=write_vertices,
+                           vertices=write_vertices, overwrite=overwrite,
                            export_options={"progress": progress, **(export_options or {})}) as writer:
         to_unit = np.float32(1.0 / mm_per_unit(scan.source_unit))
         writer.write_rig(ResultRig(rest32 * to_unit, solver.basis, disp32 * to_unit, units=scan.source_unit,
@@ -407,7 +469,7 @@ def animate_scan(
             writer.stream(lambda start, stop, out: solver.deform_into(disp32[start:stop], rest32, out),
                           batch_frames=batch_frames, head_pose=head_pose, progress=progress, desc="animate")
         np.save(writer.path("markers.npy"), (face_markers * to_unit).astype(np.float32))
-        _save_correspondence(writer.path("correspondence.npz"), prepared, rest_markers, centres)
+        _save_correspondence(writer.path("correspondence.npz"), prepared, chosen.sources, chosen.targets)
         timings["deform_and_write_s"] = time.perf_counter() - t
         # frames computed and written per second; None when nothing per frame was asked for
         timings["frames_per_second"] = T / max(timings["deform_and_write_s"], 1e-9) if writer.needs_frames else None
@@ -441,6 +503,8 @@ def animate_scan(
             "stabilization_residual_mm": None
             if prepared.stabilization_residual is None
             else prepared.stabilization_residual.tolist(),
+            "head_motion": head_motion,
+            "rest_pose": chosen.to_dict(prepared.labels),
             "notes": prepared.notes,
             "warnings": caught,
         }
@@ -462,18 +526,66 @@ def _sigma_report(prepared: PreparedMarkers) -> dict[str, Any] | None:
             "scored_frames": choice.scored_frames}
 
 
-def _marker_side(scan: Mesh, prepared: PreparedMarkers, rest_markers: np.ndarray,
-                 marker_offset_mm: float) -> tuple[MarkerRing, np.ndarray, TriharmonicWarp, np.ndarray]:
-    """What the markers need of the scan, no shell: ``(ring, centres, warp, face_markers)``.
+def _marker_side(scan: Mesh, prepared: PreparedMarkers, rest_markers: np.ndarray, marker_offset_mm: float,
+                 rest_pose: str, neutral_markers: np.ndarray | None, noise_mm: float,
+                 rest_samples: float) -> tuple[MarkerRing, np.ndarray, TriharmonicWarp, np.ndarray, RestPose]:
+    """What the markers need of the scan, no shell: ``(ring, centres, warp, face_markers, rest_pose)``.
 
     The triangles round the marker vertices with the scan's normals there,
     the markers at rest in face space (the scan points lifted by the offset),
-    the warp onto them and every frame's markers through it (T, K, 3).
+    where the warp puts the rest markers (:func:`~facecap.deform.rest_pose.choose_rest_pose`),
+    the warp and every frame's markers through it (T, K, 3).
     """
     ring = marker_ring(scan.vertices, scan.faces, prepared.constrained_vertices)
     centres = prepared.scan_points + marker_offset_mm * ring.rest_normals
-    warp = TriharmonicWarp(rest_markers, centres)
-    return ring, centres, warp, warp(prepared.positions)
+    chosen = choose_rest_pose(rest_markers, centres, noise_mm=noise_mm, rest_samples=rest_samples,
+                              normals=ring.rest_normals, motion=prepared.positions, rest_pose=rest_pose,
+                              neutral_markers=neutral_markers)
+    warp = TriharmonicWarp(chosen.sources, chosen.targets)
+    return ring, centres, warp, warp(prepared.positions), chosen
+
+
+def _effective_samples(sigma_frames: float) -> float:
+    """How many frames' worth of samples :func:`rest_average`'s Gaussian averages: ``(sum w)^2 / sum w^2``."""
+    if sigma_frames <= 0:
+        return 1.0
+    reach = int(2.5 * sigma_frames + 0.5)
+    w = np.exp(-0.5 * (np.arange(-reach, reach + 1) / sigma_frames) ** 2)
+    return float(w.sum() ** 2 / np.sum(w**2))
+
+
+def _head_motion_report(prepared: PreparedMarkers, stabilize: Any, labels: Sequence[str],
+                        rest_frame: int) -> dict[str, Any]:
+    """The ``head_motion`` section of ``report.json``: how the head pose was found, how far it moved, and doubts."""
+    from scipy.spatial.transform import Rotation
+
+    if stabilize is False or stabilize is None:
+        mode = "off"
+    elif stabilize is True:
+        mode = "auto"
+    elif isinstance(stabilize, str):
+        mode = stabilize
+    else:
+        mode = "labels"
+    out: dict[str, Any] = {"mode": mode, "stabilized": prepared.head_rotations is not None,
+                           "pose_from": prepared.head_pose_from, "stable_markers": list(prepared.stable_labels),
+                           "max_rotation_deg": None, "max_translation_mm": None, "moving_stable_markers": {}}
+    if prepared.head_rotations is None:
+        return out
+    R, t = prepared.head_rotations, prepared.head_translations
+    ok = np.isfinite(R).all(axis=(1, 2)) & np.isfinite(t).all(axis=1)
+    if ok.any():
+        relative = Rotation.from_matrix(R[ok]) * Rotation.from_matrix(R[ok][0]).inv()
+        out["max_rotation_deg"] = round(float(np.degrees(relative.magnitude().max())), 3)
+        # how far the head's markers travelled: the stabilising motion applied to the rest markers, undone
+        rest = prepared.positions[rest_frame]
+        centre = np.nanmean(rest, axis=0)
+        moved = np.einsum("tji,tj->ti", R[ok], centre[None] - t[ok])  # R^T (c - t): where c came from
+        out["max_translation_mm"] = round(float(np.linalg.norm(moved - centre, axis=1).max()), 3)
+    out["moving_stable_markers"] = moving_stable_markers(prepared.labels, [s for s in prepared.stable_labels
+                                                                          if s in prepared.labels],
+                                                         prepared.positions, rest_frame=rest_frame)
+    return out
 
 
 def _timed(function: Any, *args: Any) -> tuple[Any, float]:
@@ -529,11 +641,18 @@ def _save_correspondence(path: Any, prepared: PreparedMarkers, rest_markers: np.
     write_mocap_correspondence(path, rest_markers, centres, prepared.labels, mocap_from_stabilized=motion)
 
 
-def rest_average(P: np.ndarray, rest_frame: int, sigma_frames: float) -> np.ndarray:
+def rest_average(P: np.ndarray, rest_frame: int, sigma_frames: float, *, noise_mm: float | None = None) -> np.ndarray:
     """The rest frame's markers refined by a Gaussian average of the frames round it (K, 3), mm.
 
     Computed as the rest sample plus the weighted mean deviation from it (cut at
-    2.5 sigma, within the take), so a still take keeps its rest frame bit for bit.
+    2.5 sigma, within the take), so a still take keeps its rest frame (to rounding).
+    Each frame of the window is first moved rigidly onto the rest frame (a
+    least-squares fit of the markers both see), so a head that moves while the
+    window lasts (a take left unstabilised) does not smear the average. With
+    ``noise_mm``, each sample also counts by how close it stays to the rest
+    sample (``exp(-(d / 3 noise)^2 / 2)``, a bilateral weight): a face that
+    leaves its rest expression within the window (a take that starts to smile
+    after 60 ms) does not pull the average towards the smile.
     """
     rest = P[rest_frame]
     if sigma_frames <= 0:
@@ -541,9 +660,16 @@ def rest_average(P: np.ndarray, rest_frame: int, sigma_frames: float) -> np.ndar
     reach = int(2.5 * sigma_frames + 0.5)
     lo, hi = max(0, rest_frame - reach), min(P.shape[0], rest_frame + reach + 1)
     w = np.exp(-0.5 * ((np.arange(lo, hi) - rest_frame) / sigma_frames) ** 2)
-    dev = P[lo:hi] - rest[None]
+    window = P[lo:hi]
+    fit = rigid_fit(window, rest[None])
+    moved = np.isfinite(fit.rotation).all(axis=(1, 2))
+    window = np.where(moved[:, None, None], fit.apply(window), window)
+    dev = window - rest[None]
     seen = np.isfinite(dev).all(axis=2)  # (window, K)
     weight = w[:, None] * seen
+    if noise_mm is not None and noise_mm > 0:
+        distance = np.linalg.norm(np.where(seen[..., None], dev, 0.0), axis=2)
+        weight = weight * np.exp(-0.5 * (distance / (3.0 * noise_mm)) ** 2)
     mean_dev = np.einsum("tk,tkc->kc", weight, np.where(seen[..., None], dev, 0.0)) / weight.sum(axis=0)[:, None]
     return rest + mean_dev
 

@@ -4,11 +4,13 @@ In the order a user meets them:
 
 - :func:`read_mesh` (``read_mesh.py``): OBJ, PLY or glTF to a :class:`~facecap.Mesh`
   in mm, vertex order and count kept; :func:`write_mesh` (``write_mesh.py``) writes one back.
-- :func:`read_markers` (``read_markers.py``): a C3D, TRC or CSV take to a
-  :class:`~facecap.MarkerSequence` in mm, NaN in gaps; :func:`write_markers`
-  (``write_markers.py``) writes one.
+- :func:`read_markers` (``read_markers.py``): a C3D, TRC, Qualisys TSV or
+  Motive/facecap CSV take to a :class:`~facecap.MarkerSequence` in mm, NaN in
+  gaps; :func:`write_markers` (``write_markers.py``) writes one.
 - :func:`read_correspondence` (``read_correspondence.py``): the marker -> scan
   map, and :func:`match_correspondence` to line it up with a take's labels.
+- ``MESH_FORMATS``, ``MARKER_FORMATS`` and ``MAP_FORMATS``, beside their
+  readers: the formats each reads, by suffix; ``facecap --help`` lists them.
 - :func:`write_mocap_correspondence` / :func:`read_mocap_correspondence`
   (``mocap_correspondence.py``): a result's ``correspondence.npz``, the map from
   its face back into the capture's frame, where cameras are calibrated.
@@ -45,10 +47,11 @@ function; reach a module itself with ``importlib.import_module``.
 
 from __future__ import annotations
 
-from .read_correspondence import Correspondence, CorrespondenceMatch, match_correspondence, read_correspondence
+from .read_correspondence import (MAP_FORMATS, Correspondence, CorrespondenceMatch, match_correspondence,
+                                  read_correspondence)
 from .mocap_correspondence import read_mocap_correspondence, write_mocap_correspondence
-from .read_markers import MARKER_SUFFIXES, read_markers
-from .read_mesh import read_mesh
+from .read_markers import MARKER_FORMATS, MARKER_SUFFIXES, read_markers
+from .read_mesh import MESH_FORMATS, MESH_SUFFIXES, read_mesh
 from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditioned_take, write_conditioned_take
 from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
@@ -58,6 +61,7 @@ from .write_performance import (
     EXPORT_FORMATS,
     STREAMED_FORMATS,
     PerformanceWriter,
+    check_result_destination,
     file_sizes,
     import_writers,
     read_performance_info,
@@ -72,7 +76,15 @@ from .write_usd_blendshapes import (DEFAULT_BLENDSHAPE_TOLERANCE_MM, DEFAULT_USD
                                     write_usd_blendshapes)
 from .weight_ranges import UnitRangeWeights, to_unit_range
 from .gltf_review import write_gltf_review
-from .export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES, export_result, parse_export_formats
+from .export_result import (
+    DEFAULT_GLTF_TARGETS,
+    DEFAULT_REVIEW_VERTICES,
+    EXPORT_FRAMES,
+    WORLD_FRAME_FORMATS,
+    export_files,
+    export_result,
+    parse_export_formats,
+)
 
 __all__ = [
     "write_gltf",
@@ -80,11 +92,15 @@ __all__ = [
     "MORPH_GPU_BUDGET_BYTES",
     "MORPH_GPU_BYTES_PER_VERTEX_TARGET",
     "read_mesh",
+    "MESH_FORMATS",
+    "MESH_SUFFIXES",
     "write_mesh",
     "read_markers",
+    "MARKER_FORMATS",
     "MARKER_SUFFIXES",
     "write_markers",
     "read_correspondence",
+    "MAP_FORMATS",
     "match_correspondence",
     "Correspondence",
     "CorrespondenceMatch",
@@ -99,6 +115,7 @@ __all__ = [
     "write_alembic",
     "STREAMED_FORMATS",
     "file_sizes",
+    "check_result_destination",
     "import_writers",
     "ResultRig",
     "write_rig",
@@ -117,6 +134,9 @@ __all__ = [
     "UnitRangeWeights",
     "write_gltf_review",
     "parse_export_formats",
+    "export_files",
+    "EXPORT_FRAMES",
+    "WORLD_FRAME_FORMATS",
     "DEFAULT_GLTF_TARGETS",
     "DEFAULT_REVIEW_VERTICES",
     "write_scan_plan",

@@ -9,7 +9,11 @@ leave-self-out cross-validation); :func:`condition_take`
 uses a head band when it is rigid, else :func:`consensus_stabilize`
 (``consensus_stabilize.py``: per frame, the rigid motion most skin markers
 agree on; :func:`estimate_marker_noise` measures the noise it scales by). :func:`rigid_fit` (``rigid_fit.py``) is the
-batched, NaN-aware Kabsch fit they share, returning a :class:`RigidTransform`.
+batched, NaN-aware Kabsch fit they share, returning a :class:`RigidTransform`;
+:func:`moving_stable_markers` (``condition_take.py``) names the markers a head pose rests on that move
+with the face. :func:`measure_resting_expression` (``resting_expression.py``) measures a take's rest frame
+against the scan (a :class:`RestingExpression`: the robust rigid fit, :func:`robust_rigid_fit`, and how much
+of the mismatch is an expression the actor holds at rest, by how much of it each marker's neighbours share).
 """
 
 from __future__ import annotations
@@ -18,14 +22,31 @@ from .bilateral_filter import bilateral_filter
 from .choose_temporal_sigma import DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S, TemporalSigmaChoice, choose_temporal_sigma
 from .condition_take import (
     DEFAULT_HEAD_MOTION_SIGMA_S,
+    HEAD_POSE_SOURCES,
     SKIN_HEAD_POSES,
+    STABLE_MARKER_MOTION_MM,
     STILL_HEAD_RATIO,
     ConditionedTake,
     auto_stabilize,
     condition_take,
+    moving_stable_markers,
 )
 from .consensus_stabilize import consensus_stabilize, estimate_marker_noise
 from .fill_gaps import FilledMarkers, fill_gaps
+from .resting_expression import (
+    ABOVE_NOISE,
+    MAX_RESTING_MM,
+    MAX_SCALE_ERROR,
+    MIN_COHERENCE,
+    MISPLACED_MM,
+    MOTION_Z_SCORE,
+    PLACEMENT_LIMIT_MM,
+    PLACEMENT_LIMIT_PER_NOISE,
+    NEIGHBOUR_SCALE_MM,
+    RestingExpression,
+    measure_resting_expression,
+    robust_rigid_fit,
+)
 from .rigid_fit import RigidTransform, rigid_fit
 from .stabilize_head import Stabilization, stabilize_head
 
@@ -46,6 +67,21 @@ __all__ = [
     "DEFAULT_HEAD_MOTION_SIGMA_S",
     "SKIN_HEAD_POSES",
     "STILL_HEAD_RATIO",
+    "HEAD_POSE_SOURCES",
+    "STABLE_MARKER_MOTION_MM",
+    "moving_stable_markers",
+    "measure_resting_expression",
+    "RestingExpression",
+    "robust_rigid_fit",
+    "MIN_COHERENCE",
+    "NEIGHBOUR_SCALE_MM",
+    "ABOVE_NOISE",
+    "MAX_SCALE_ERROR",
+    "MAX_RESTING_MM",
+    "MISPLACED_MM",
+    "MOTION_Z_SCORE",
+    "PLACEMENT_LIMIT_MM",
+    "PLACEMENT_LIMIT_PER_NOISE",
     "rigid_fit",
     "RigidTransform",
 ]

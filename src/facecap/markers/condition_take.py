@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 from dataclasses import dataclass
 from typing import Sequence
@@ -17,7 +18,8 @@ from .rigid_fit import RigidTransform
 from .consensus_stabilize import consensus_stabilize
 from .stabilize_head import Stabilization, stabilize_head
 
-__all__ = ["ConditionedTake", "condition_take", "DEFAULT_HEAD_MOTION_SIGMA_S", "SKIN_HEAD_POSES", "STILL_HEAD_RATIO"]
+__all__ = ["ConditionedTake", "condition_take", "moving_stable_markers", "DEFAULT_HEAD_MOTION_SIGMA_S",
+           "SKIN_HEAD_POSES", "STILL_HEAD_RATIO", "HEAD_POSE_SOURCES", "STABLE_MARKER_MOTION_MM"]
 
 STILL_HEAD_RATIO = 2.0
 """A head counts as still when its motion is under this many times the disagreement of two estimates of it."""
@@ -34,6 +36,16 @@ STILL_HEAD_WITNESS_MOTION_MM = 2.0
 
 DEFAULT_HEAD_MOTION_SIGMA_S = 0.05
 """Half-width (s) of the smoothing of the stabilising transform over time (see :func:`condition_take`)."""
+
+HEAD_POSE_SOURCES = ("head band", "consensus of the skin markers", "most rigid skin markers", "named markers")
+"""Where a stabilised take's head pose came from (:attr:`ConditionedTake.head_pose_from`)."""
+
+STABLE_MARKER_MOTION_MM = 1.0
+"""A marker the head pose rests on that moves further than this from its rest place (95th percentile, after
+stabilisation) moves with the face, not the skull: :func:`moving_stable_markers` names it."""
+
+_JAW_OR_LIPS = re.compile(r"chin|jaw|lip|mouth|mth|crnr|corner", re.IGNORECASE)
+"""Label words of markers on the jaw or the lips, as vendors' face marker sets name them."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,6 +70,8 @@ class ConditionedTake:
     temporal_sigma_choice : TemporalSigmaChoice or None
         How it was chosen, when it was (``temporal_sigma_s='auto'``): every
         candidate's cross-validation score.
+    head_pose_from : str or None
+        One of :data:`HEAD_POSE_SOURCES`; None where the take was not stabilised.
     """
 
     positions: np.ndarray
@@ -68,6 +82,7 @@ class ConditionedTake:
     stable_labels: tuple[str, ...]
     temporal_sigma_s: float | None = None
     temporal_sigma_choice: TemporalSigmaChoice | None = None
+    head_pose_from: str | None = None
 
 
 def condition_take(
@@ -134,12 +149,17 @@ def condition_take(
     filled = fill_gaps(markers.positions, rate=markers.rate)
     P = filled.positions
     stab: Stabilization | None = None
+    source: str | None = None
     if stabilize is not False and stabilize is not None:
         if isinstance(stabilize, str) and stabilize == "consensus":
             stab = consensus_stabilize(P, rest_frame=rest_frame)
+            source = HEAD_POSE_SOURCES[1]
         elif isinstance(stabilize, bool):
             preferred = [index[s] for s in preferred_stable if s in index]
             stab = auto_stabilize(P, rest_frame, preferred, skin_head_pose=skin_head_pose)
+            if stab is not None:
+                band = set(stab.stable_markers.tolist()) <= set(preferred)
+                source = HEAD_POSE_SOURCES[0 if band else (1 if skin_head_pose == "consensus" else 2)]
             if stab is None:
                 warnings.warn(
                     f"{markers.source_path or 'take'}: no head motion beyond what the expressions move the "
@@ -150,6 +170,7 @@ def condition_take(
             if unknown:
                 raise MarkerError(f"--stabilize names markers not in the take: {unknown}", path=markers.source_path)
             stab = stabilize_head(P, rest_frame=rest_frame, stable_markers=[index[s] for s in stabilize])
+            source = HEAD_POSE_SOURCES[3]
         if stab is not None:
             if head_motion_sigma_s > 0:
                 stab = _smooth_stabilization(stab, filled.positions, head_motion_sigma_s * markers.rate, rest_frame)
@@ -173,7 +194,55 @@ def condition_take(
         stable_labels=() if stab is None else tuple(markers.labels[i] for i in stab.stable_markers),
         temporal_sigma_s=sigma,
         temporal_sigma_choice=choice,
+        head_pose_from=source,
     )
+
+
+def moving_stable_markers(labels: Sequence[str], stable_labels: Sequence[str], positions: np.ndarray, *,
+                          rest_frame: int = 0) -> dict[str, str]:
+    """The markers a head pose rests on that are likely on the jaw or lips, each with why.
+
+    A head pose taken from markers that move with the face carries their motion into every frame (a jaw
+    opening read as a nod). Two signs are checked: the marker moves further than
+    :data:`STABLE_MARKER_MOTION_MM` from its rest place in the stabilised take (95th percentile), or its
+    label names the chin, jaw, lips or mouth (a still marker there is still in this take, not in the next).
+
+    Parameters
+    ----------
+    labels : sequence of str, length M
+        The take's labels, in the column order of ``positions``.
+    stable_labels : sequence of str
+        The markers the head pose rests on.
+    positions : (T, M, 3) float64 array, mm
+        The stabilised take.
+    rest_frame : int, default 0
+
+    Returns
+    -------
+    dict of str to str
+        Label -> the reason, e.g. ``'moves 2.1 mm'`` or ``'named as on the jaw or lips'``; empty when none.
+
+    Examples
+    --------
+    >>> P = np.zeros((10, 3, 3)); P[:, 2, 0] = np.linspace(0, 3, 10)
+    >>> moving_stable_markers(["HB0", "Chin_R2", "HB1"], ["HB0", "Chin_R2", "HB1"], P)
+    {'Chin_R2': 'named as on the jaw or lips', 'HB1': 'moves 2.8 mm'}
+    """
+    index = {label: i for i, label in enumerate(labels)}
+    out: dict[str, str] = {}
+    for label in stable_labels:
+        column = positions[:, index[label]]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a marker never seen
+            motion = float(np.nanpercentile(np.linalg.norm(column - column[rest_frame], axis=1), 95))
+        reasons = []
+        if _JAW_OR_LIPS.search(label):
+            reasons.append("named as on the jaw or lips")
+        if np.isfinite(motion) and motion > STABLE_MARKER_MOTION_MM:
+            reasons.append(f"moves {motion:.1f} mm")
+        if reasons:
+            out[label] = ", ".join(reasons)
+    return out
 
 
 def auto_stabilize(P: np.ndarray, rest_frame: int, preferred: Sequence[int], *,

@@ -3,19 +3,28 @@
 In the order a user meets them:
 
 - :func:`describe_file` (``describe.py``): what a take, a mesh or a result
-  folder holds (``facecap info``).
+  folder holds (``facecap info``); :func:`format_description` writes it as text.
 - :func:`evaluate_result`, :func:`read_truth` (``evaluate_result.py``): the
   dense error of an output folder against a ground-truth file (``facecap evaluate``);
   :func:`result_and_truth_mm` gives both aligned, for per-vertex use.
 - :func:`evaluate_performance` (``evaluate_performance.py``): the same on
   arrays, as :class:`DenseError` with per-region :class:`RegionError`.
 - :func:`render_mesh`, :func:`render_side_by_side` (``render_mesh.py``):
-  headless pictures of a mesh, as :class:`MeshPanel` panels.
+  headless pictures of a mesh, as :class:`MeshPanel` panels; :func:`draw_mesh` draws one into
+  an axes for pictures that mark things on it.
+- :func:`plot_marker_map` (``plot_marker_map.py``): a scan with the places ``facecap map`` found
+  for the markers, labelled, the ones to check in another colour.
 - :func:`plot_series` (``plot_series.py``): per-frame quantities against time.
+- :func:`plot_scan_selection` (``plot_scan_selection.py``): a scan plan's error per added
+  scan (Huang et al. 2011, Fig. 8) and its chosen frames over the take.
+- :func:`plot_activations` (``plot_activations.py``): muscle activations over a take, with
+  the frames the solve flagged and the marker residual that flagged them.
 - :func:`write_review_page`, :func:`serve`, :class:`ReviewServer` (``review_page.py``):
   the result's GLB played in the browser (three.js, offline), and the localhost server
   of ``facecap view``.
-- :func:`write_html_report` (``html_report.py``): one self-contained HTML report per run.
+- :func:`write_html_report` (``html_report.py``): one self-contained HTML report per run
+  (summary, quality figures explained, warnings explained, details); :func:`explain_warning`
+  (``explain_warning.py``) says what each warning means and what to do.
 - :func:`view_result`, :func:`write_run_report` (``view_result.py``): what ``facecap view``
   writes into a result folder (the GLB if missing, ``review.html``, ``report.html``).
 
@@ -26,17 +35,22 @@ once anything had imported ``facecap.report.render_mesh`` directly.
 
 from __future__ import annotations
 
-from .describe import describe_file
+from .describe import describe_file, format_description
 from .evaluate_performance import DenseError, RegionError, evaluate_performance
 from .evaluate_result import evaluate_result, read_truth, result_and_truth_mm
+from .explain_warning import WarningAdvice, explain_warning
 from .html_report import write_html_report
+from .plot_activations import plot_activations
+from .plot_scan_selection import plot_scan_selection
 from .plot_series import plot_series
-from .render_mesh import MeshPanel, render_mesh, render_side_by_side
+from .plot_marker_map import MARKER_MAP_COLORS, plot_marker_map
+from .render_mesh import MeshPanel, draw_mesh, render_mesh, render_side_by_side
 from .review_page import EMBED_LIMIT_BYTES, ReviewServer, serve, write_review_page
 from .view_result import ERROR_ROWS, view_result, write_run_report
 
 __all__ = [
     "describe_file",
+    "format_description",
     "evaluate_result",
     "read_truth",
     "evaluate_performance",
@@ -44,13 +58,20 @@ __all__ = [
     "RegionError",
     "render_mesh",
     "render_side_by_side",
+    "draw_mesh",
+    "plot_marker_map",
+    "MARKER_MAP_COLORS",
     "MeshPanel",
     "plot_series",
+    "plot_scan_selection",
+    "plot_activations",
     "write_review_page",
     "serve",
     "ReviewServer",
     "EMBED_LIMIT_BYTES",
     "write_html_report",
+    "explain_warning",
+    "WarningAdvice",
     "result_and_truth_mm",
     "view_result",
     "write_run_report",

@@ -10,7 +10,9 @@ In the order a user meets them:
   pivots, :func:`vertex_normals_at` is the normal helper it uses;
   :func:`rotational_jaw_correction`, :func:`fit_jaw_screw`, :class:`JawScrew`,
   :data:`ICT_JAW_SCREW`, :data:`JAW_MODES` (``rotational_jaw.py``) make its ``jaw='rotational'``
-  (the jaw opening along its arc instead of the blendshape's straight lines).
+  (the jaw opening along its arc instead of the blendshape's straight lines);
+  :func:`random_rest_expression`, :data:`RESTING_SHAPES` (``rest_expression.py``) its
+  ``rest_expression`` (a take whose resting face is not the scan's).
 - The weight curves it can drive the face with:
   :func:`smooth_expression_curves`, :data:`EXPRESSION_PRESETS`
   (``expression_curves.py``), smooth expressions;
@@ -30,7 +32,7 @@ In the order a user meets them:
   records of it (exposure, shading, noise, sRGB), for ``Mesh.vertex_colors``.
 - :func:`write_synthetic_case`, :func:`write_planned_scans`
   (``write_synthetic_case.py``): a case on disk as a user would hold it
-  (scan, take, map, truth), as :class:`CaseFiles`.
+  (scan, take, map, truth), as :class:`CaseFiles`; :func:`correspondence_json`, its ``map.json``.
 - Footage with ground truth for the wrinkle layer (Bickel et al. 2007, section 5):
   :func:`subdivide_scan`, :class:`SubdividedScan`, :func:`refine_near` (``wrinkle_scan.py``), the
   scan fine enough to hold wrinkles; :func:`place_wrinkles`,
@@ -64,11 +66,12 @@ from .capture_colors import capture_colors, srgb_decode, srgb_encode
 from .ict_sample import IctSample, bundled_path, load_ict_sample
 from .marker_layout import animface_marker_map, boundary_vertices, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, RealCurveFit, load_real_curve_fit, real_motion_curves
+from .rest_expression import RESTING_SHAPES, as_rest_weights, random_rest_expression
 from .rotational_jaw import ICT_JAW_SCREW, JAW_MODES, JawScrew, fit_jaw_screw, rotational_jaw_correction
 from .scan_expression import ScannedExpression, scan_expression
 from .skin_albedo import BASE_SKIN_TONE, SkinRegions, skin_albedo
 from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
-from .write_synthetic_case import CaseFiles, write_planned_scans, write_synthetic_case
+from .write_synthetic_case import CaseFiles, correspondence_json, write_planned_scans, write_synthetic_case
 from .wrinkle_scan import SubdividedScan, refine_near, subdivide_scan
 from .wrinkles import (INFLUENCE_WIDTHS, WRINKLE_EXPRESSIONS, WRINKLE_KINDS, WrinkleCurves, WrinkledPerformance,
                        add_wrinkles, every_wrinkle_at_once, place_wrinkles, wrinkle_activation,
@@ -89,6 +92,9 @@ __all__ = [
     "CURVE_GENERATORS",
     "HEAD_PIVOTS_MM",
     "vertex_normals_at",
+    "random_rest_expression",
+    "RESTING_SHAPES",
+    "as_rest_weights",
     "rotational_jaw_correction",
     "fit_jaw_screw",
     "JawScrew",
@@ -116,6 +122,7 @@ __all__ = [
     "srgb_decode",
     "write_synthetic_case",
     "write_planned_scans",
+    "correspondence_json",
     "CaseFiles",
     "subdivide_scan",
     "SubdividedScan",

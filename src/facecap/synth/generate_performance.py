@@ -18,6 +18,7 @@ from .expression_curves import _smoothstep, smooth_expression_curves
 from .ict_sample import IctSample, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, real_motion_curves
+from .rest_expression import as_rest_weights
 from .rotational_jaw import ICT_JAW_SCREW, JAW_MODES, JAW_SHAPE, rotational_jaw_correction
 from .speech_curves import speech_expression_curves
 
@@ -53,12 +54,15 @@ class SyntheticCase:
         (``M000``, ``M001``, ... or the layout's own labels), then the
         head-band markers ``HB0``, ``HB1``, ... (rigid with the head, not in
         the map). NaN where occluded.
-    correspondence : dict of str to int
-        Face marker label -> scan vertex (what a user picks by hand).
+    correspondence : dict of str to int or list of 3 floats
+        Face marker label -> scan vertex (what a user picks by hand); with
+        ``map_error_mm`` > 0, label -> the point on the scan (mm) the user
+        picked, off the marker's true place along the skin.
     truth_vertices : (T, n, 3) float32 array, mm
         The dense expression in the scan's frame, without head motion:
         ``scan + weights[t] @ expression_deltas``, plus
         :func:`~facecap.synth.rotational_jaw_correction` when ``jaw`` is 'rotational'.
+        Displacements from the scan: with a ``rest_expression`` frame 0 is not the scan.
     head_pose : (T, 4, 4) float64 array
         Rigid head motion in scan coordinates (mm): the face at frame t is
         ``head_pose[t]`` applied to ``truth_vertices[t]``. ``head_pose[0]`` is
@@ -66,15 +70,20 @@ class SyntheticCase:
     mocap_from_scan : (4, 4) float64 array
         Fixed rigid transform from the scan's frame to the mocap system's.
     weights : (T, k) float64 array
-        The blendshape weights that drove the expression (k = 53).
+        The blendshape weights that drove the expression (k = 53), the
+        resting expression included.
     marker_vertices : (M,) int64 array
-        Scan vertex under each face marker, in the order of the first M labels.
+        Scan vertex under each face marker, in the order of the first M labels
+        (the true place, whatever ``correspondence`` says).
     noiseless_markers : (T, M + H, 3) float64 array, mm
         The markers before noise and gaps, same columns as ``markers``.
     headband_points : (H, 3) float64 array, mm
         The head-band markers in the scan's frame (they move with ``head_pose`` only).
     jaw : {'linear', 'rotational'}
         How ``jawOpen`` was blended (:func:`generate_performance`).
+    rest_weights : (k,) float64 array or None
+        The resting expression held under the whole take (None: neutral,
+        frame 0 is the scan).
     """
 
     scan: Mesh
@@ -88,6 +97,7 @@ class SyntheticCase:
     noiseless_markers: FloatArray
     headband_points: FloatArray
     jaw: str = "linear"
+    rest_weights: FloatArray | None = None
 
     @property
     def n_face_markers(self) -> int:
@@ -379,6 +389,8 @@ def generate_performance(
     seed: int = 0,
     sample: IctSample | None = None,
     jaw: str = "linear",
+    rest_expression: Any = None,
+    map_error_mm: float = 0.0,
 ) -> SyntheticCase:
     """Generate a facial mocap take on the ICT face with dense ground truth.
 
@@ -459,6 +471,18 @@ def generate_performance(
         'rotational': the part of each vertex's displacement that the jaw's rotation explains is
         taken along the arc (:mod:`facecap.synth.rotational_jaw`); full weight is ICT's shape
         either way.
+    rest_expression : dict of str to float or (k,) float array, optional
+        An expression the actor holds under the whole take (a slight smile,
+        lowered brows): added to every frame's weights (clipped to [0, 1]),
+        so the take's first frame is not the scan's expression and no frame
+        need be. :func:`~facecap.synth.random_rest_expression` draws one.
+        Default: none, frame 0 shows the scan.
+    map_error_mm : float, default 0.0
+        Standard deviation, per direction along the skin, of where the map
+        places each marker against its true place (a map picked by hand):
+        ``correspondence`` then holds points on the scan, off the true
+        vertex, and ``marker_vertices`` the truth. Drawn from its own
+        stream, so it changes nothing else.
 
     Returns
     -------
@@ -511,6 +535,8 @@ def generate_performance(
     if jaw not in JAW_MODES:
         raise InputError(f"jaw: expected one of {JAW_MODES}, got {jaw!r}")
     names = sample.expression_names
+    rest_weights = as_rest_weights(rest_expression, names)
+    map_error_mm = as_positive(map_error_mm, name="map_error_mm", allow_zero=True)
 
     if curves is None or isinstance(curves, str):
         T = DEFAULT_FRAMES if n_frames is None else _count(n_frames, "n_frames", minimum=1)
@@ -528,8 +554,11 @@ def generate_performance(
         if not np.all(np.isfinite(W)):
             raise InputError("curves: contains NaN or infinite values")
 
-    streams = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(5)]
-    rng_band, rng_head, rng_mocap, rng_noise, rng_gaps = streams
+    if rest_weights.any():
+        W = np.clip(W + rest_weights[None], 0.0, 1.0)
+    # spawn keys are positional: a sixth stream leaves the first five (and every earlier take) as they were
+    streams = [np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(6)]
+    rng_band, rng_head, rng_mocap, rng_noise, rng_gaps, rng_map = streams
 
     scan = sample.face(identity)
     V0, F = scan.vertices, scan.faces
@@ -573,10 +602,15 @@ def generate_performance(
 
     all_labels = labels + tuple(f"HB{i}" for i in range(n_band))
     markers = MarkerSequence(observed, all_labels, rate=rate, source_unit="mm")
+    if map_error_mm > 0:
+        picked = _picked_points(V0, F, mv, map_error_mm, rng_map)
+        correspondence: dict[str, Any] = {s: [float(x) for x in p] for s, p in zip(labels, picked)}
+    else:
+        correspondence = {s: int(v) for s, v in zip(labels, mv)}
     return SyntheticCase(
         scan=scan,
         markers=markers,
-        correspondence={s: int(v) for s, v in zip(labels, mv)},
+        correspondence=correspondence,
         truth_vertices=truth,
         head_pose=head_pose,
         mocap_from_scan=mocap_from_scan,
@@ -585,4 +619,21 @@ def generate_performance(
         noiseless_markers=noiseless,
         headband_points=band,
         jaw=jaw,
+        rest_weights=rest_weights if rest_weights.any() else None,
     )
+
+
+def _picked_points(V: FloatArray, F: IntArray, vertices: IntArray, error_mm: float,
+                   rng: np.random.Generator) -> FloatArray:
+    """(k, 3) points on the surface, off ``V[vertices]`` along the skin by N(0, error_mm^2) per tangent direction.
+
+    The offset is taken in the tangent plane of the vertex normal and the result is put back on the
+    surface by its closest point, as a user's click on the scan would land.
+    """
+    import igl
+
+    N = vertex_normals_at(V, F, vertices)
+    step = rng.normal(scale=error_mm, size=(vertices.size, 3))
+    step -= np.einsum("kd,kd->k", step, N)[:, None] * N
+    _, _, C = igl.point_mesh_squared_distance(V[vertices] + step, V, F)
+    return np.asarray(C, dtype=np.float64)

@@ -21,6 +21,7 @@ from .skin_albedo import SkinRegions, skin_albedo
 from .wrinkle_paint import PAINT_COLORS, paint_wrinkles
 from .wrinkle_scan import SubdividedScan, refine_near, subdivide_scan
 from .wrinkles import add_wrinkles, place_wrinkles, wrinkle_expression_curves, wrinkle_heights
+from .write_synthetic_case import correspondence_json
 
 __all__ = ["FootageFiles", "stage_cameras", "write_footage_case", "MOCAP_RATE_HZ", "VIDEO_RATE_HZ"]
 
@@ -424,7 +425,7 @@ def write_footage_case(
     markers_path = out / "take.c3d"
     write_markers(case.markers, markers_path)
     map_path = out / "map.json"
-    atomic_write_text(map_path, json.dumps({k: int(v) for k, v in case.correspondence.items()}, indent=1))
+    atomic_write_text(map_path, correspondence_json(case.correspondence))
     truth_path = out / "truth.npz"
     arrays = {
         "vertices": wrinkled.vertices, "large_scale": large, "wrinkle_mask": wrinkled.mask,

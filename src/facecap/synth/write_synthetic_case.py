@@ -18,7 +18,7 @@ from .capture_colors import capture_colors
 from .scan_expression import scan_expression
 from .skin_albedo import SkinRegions, skin_albedo
 
-__all__ = ["write_synthetic_case", "write_planned_scans", "CaseFiles"]
+__all__ = ["write_synthetic_case", "write_planned_scans", "correspondence_json", "CaseFiles"]
 
 
 class CaseFiles(NamedTuple):
@@ -28,6 +28,16 @@ class CaseFiles(NamedTuple):
     markers: Path
     map: Path
     truth: Path
+
+
+def correspondence_json(correspondence: dict, scale: float = 1.0) -> str:
+    """``map.json``'s text for a case's correspondence: vertex indices as they are, points (mm) times ``scale``.
+
+    ``scale`` converts mm to the unit the scan is written in (points of a map are in the scan's unit).
+    """
+    entries = {label: int(where) if np.ndim(where) == 0 else [float(x) * scale for x in where]
+               for label, where in correspondence.items()}
+    return json.dumps(entries, indent=1)
 
 
 def write_synthetic_case(
@@ -94,7 +104,7 @@ def write_synthetic_case(
     markers_path = out / f"take.{marker_format}"
     write_markers(case.markers, markers_path)
     map_path = out / "map.json"
-    atomic_write_text(map_path, json.dumps({k: int(v) for k, v in case.correspondence.items()}, indent=1))
+    atomic_write_text(map_path, correspondence_json(case.correspondence, scale))
     truth_path = out / "truth.npz"
     pose = np.array(case.head_pose, dtype=np.float64)
     pose[:, :3, 3] *= scale
