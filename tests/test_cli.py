@@ -100,6 +100,18 @@ def test_map_naming_a_missing_marker_or_vertex(capture_case, tmp_path, capsys, e
     assert not (tmp_path / "result").exists()
 
 
+@pytest.mark.parametrize("neutral, needle", [("5:2", "--neutral 5:2"), ("0:1000", "0 <= A < B <= 40"),
+                                             ("missing.c3d", "missing.c3d"), ("few.trc", "at least 4")])
+def test_a_bad_neutral_reference_is_one_line_and_writes_nothing(capture_case, tmp_path, capsys, neutral, needle):
+    if neutral == "few.trc":  # a neutral take holding 3 of the map's markers
+        take = capture_case.take
+        write_markers(MarkerSequence(take.positions[:, :3], take.labels[:3], 60.0), tmp_path / "few.trc")
+    assert _animate(capture_case, tmp_path / "result", "--neutral", str(tmp_path / neutral)
+                    if neutral.endswith(("c3d", "trc")) else neutral) == 2
+    _one_line_error(capsys, needle)
+    assert not (tmp_path / "result").exists()
+
+
 def test_all_markers_missing_at_the_rest_frame(capture_case, tmp_path, capsys):
     P = capture_case.take.positions.copy()
     P[5] = np.nan

@@ -40,7 +40,9 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--map", required=True,
                    help=f"marker map, {_formats_read('map')}: marker label -> scan vertex index or 3D point")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--rest-frame", type=int, default=0, help="frame whose expression matches the scan [0]")
+    p.add_argument("--rest-frame", type=int, default=0,
+                   help="the take's rest frame: stabilisation aligns to it and the warp maps it onto the scan "
+                        "(its expression, if not the scan's, is measured: --rest-pose) [0]")
     p.add_argument("--ks", type=float, default=DEFAULT_KS, help=f"stretching stiffness, dimensionless [{DEFAULT_KS}]")
     p.add_argument("--kb", type=float, default=DEFAULT_KB_MM2, help=f"bending stiffness in mm^2 [{DEFAULT_KB_MM2}]")
     p.add_argument(
@@ -52,8 +54,9 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--rest-pose", choices=("auto", "scan", "expression"), default="auto",
                    help="what the rest frame's mismatch with the scan is: 'scan' (the rest frame shows the scan's "
                         "expression; the warp maps it onto the scan), 'expression' (the actor rests with an "
-                        "expression of their own, kept as motion), 'auto' (measured; kept when it lies along the "
-                        "take's motion, clearly above the noise, with a note) [auto]")
+                        "expression of their own, kept as motion), 'auto' (measured; kept, with a note, when it is "
+                        "clearly above the noise, shared by neighbouring markers or along the take's own motion, and "
+                        "not off marker by marker as a hand-picked map is) [auto]")
     p.add_argument("--neutral", default=None, metavar="A:B|TAKE",
                    help="an explicit neutral reference instead of the rest frame: frames A <= t < B of this take in "
                         "which the actor holds the scan's expression, or a separate neutral take file")
@@ -111,8 +114,13 @@ def _cmd_animate(args: argparse.Namespace) -> int:
             f"wrote {result.out_dir}: {result.report['n_frames']} frames x {result.report['n_vertices']} vertices "
             f"from {result.report['n_markers']} markers (set-up {t['shell_setup_s']:.1f} s, {speed})"
         )
-        print(_head_motion_line(result.report["head_motion"]))
-        print(f"rest frame: {result.report['rest_pose']['reason']}")
+        # what a warning line already said (a choice made for the user) is not said twice
+        warned = " ".join(result.report["warnings"])
+        head = result.report["head_motion"]
+        if head["stabilized"] or head["mode"] == "off":
+            print(_head_motion_line(head))
+        if result.report["rest_pose"]["reason"] not in warned:
+            print(f"rest frame: {result.report['rest_pose']['reason']}")
         if result.report["warp_outliers"]:
             print(f"check these markers' scan vertices (large leave-one-out warp residual): "
                   f"{', '.join(result.report['warp_outliers'])}")
@@ -138,9 +146,11 @@ def _neutral_option(text: str | None, take: Any, marker_units: str | None) -> An
     from pathlib import Path
 
     from .deform.rest_pose import parse_frame_range
-    from .io.read_markers import read_markers
+    from .io.read_markers import MARKER_FORMATS, read_markers
 
-    if ":" in text and not Path(text).exists():
+    # a take file's name may hold a colon too (a Windows drive, C:\takes\neutral.c3d): a name with a take's
+    # suffix is read as a file, so that a missing one is reported as missing, not as a bad range
+    if ":" in text and not Path(text).exists() and Path(text).suffix.lower() not in MARKER_FORMATS:
         return parse_frame_range(text, take.n_frames)
     return read_markers(text, unit=marker_units)
 

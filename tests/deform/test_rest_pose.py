@@ -80,6 +80,28 @@ def test_a_separate_neutral_take_is_carried_into_the_takes_frame():
         neutral_from_take(MarkerSequence(other[:, :3], tuple(labels[:3]), rate=100.0), labels, rest)
 
 
+def test_neutral_frames_leave_out_a_frame_the_fit_cannot_place():
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(20, 3)) * 40.0
+    frames = X[None] + rng.normal(scale=0.1, size=(10, 20, 3))
+    frames[3, 2:] = np.nan  # a frame that sees two markers: no rigid fit, left out of the mean
+    mean = neutral_from_frames(frames, 0, 10)
+    assert np.isfinite(mean).all() and rigid_fit(mean, X).rms < 2.0 * 0.1 * np.sqrt(3 / 9)
+
+
+def test_a_neutral_take_label_never_seen_keeps_the_rest_place():
+    rng = np.random.default_rng(6)
+    X = rng.normal(size=(20, 3)) * 40.0
+    labels = [f"M{i}" for i in range(20)]
+    other = X[None] + rng.normal(scale=0.05, size=(30, 20, 3))
+    other[:, 0] = np.nan  # labelled in the neutral take, never captured
+    rest = X + 0.3
+    out, notes = neutral_from_take(MarkerSequence(other, tuple(labels), rate=100.0), labels, rest)
+    np.testing.assert_array_equal(out[0], rest[0])
+    np.testing.assert_allclose(out[1:], X[1:] + 0.3, atol=0.05)
+    assert "M0" in notes[0]
+
+
 @pytest.mark.parametrize("text, expected", [("0:10", (0, 10)), ("5:6", (5, 6))])
 def test_frame_ranges(text, expected):
     assert parse_frame_range(text, 10) == expected

@@ -203,6 +203,28 @@ def test_a_result_that_appears_during_the_run_is_kept_and_so_is_the_run(tmp_path
     assert _hidden(tmp_path) == []
 
 
+def test_an_overwrite_that_fails_between_its_renames_puts_the_earlier_result_back(tmp_path, monkeypatch):
+    final = tmp_path / "result"
+    _finished(final, "done.json", "performance.mdd")
+    real_replace, calls = os.replace, []
+
+    def second_fails(src, dst):
+        calls.append(dst)
+        if len(calls) == 2:  # the new result into place: the name was taken meanwhile
+            raise OSError(errno.ENOTEMPTY, os.strerror(errno.ENOTEMPTY), str(dst))
+        return real_replace(src, dst)
+
+    with monkeypatch.context() as patch:
+        patch.setattr(_atomic.os, "replace", second_fails)
+        with pytest.raises(InputError, match="result-2"):
+            with atomic_folder(final, marker_file="done.json", overwrite=True) as stage:
+                (stage / "done.json").write_text("new")
+    assert sorted(p.name for p in final.iterdir()) == ["done.json", "performance.mdd"]
+    assert (final / "done.json").read_text() == "done.json"
+    assert (tmp_path / "result-2" / "done.json").read_text() == "new"
+    assert _hidden(tmp_path) == []
+
+
 def test_an_empty_folder_is_written_into(tmp_path):
     final = tmp_path / "made_by_hand"
     final.mkdir()

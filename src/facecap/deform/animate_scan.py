@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any, Iterable, Sequence
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 from threadpoolctl import threadpool_limits
 
 from ..errors import FacecapWarning, MarkerError
@@ -394,7 +395,8 @@ def animate_scan(
             mesh_check_run = beside_setup.submit(_timed, check_mesh, scan.vertices, scan.faces)
             marker_side_run = beside_setup.submit(_timed, _marker_side, scan, prepared, rest_markers, marker_offset_mm,
                                                   rest_pose, neutral_markers, noise_mm,
-                                                  _effective_samples(rest_average_s * markers.rate))
+                                                  _effective_samples(rest_average_s * markers.rate, rest_frame,
+                                                                     markers.n_frames))
             stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
             solver = ThinShellSolver(
                 scan.vertices, scan.faces, prepared.constrained_vertices,
@@ -545,20 +547,23 @@ def _marker_side(scan: Mesh, prepared: PreparedMarkers, rest_markers: np.ndarray
     return ring, centres, warp, warp(prepared.positions), chosen
 
 
-def _effective_samples(sigma_frames: float) -> float:
-    """How many frames' worth of samples :func:`rest_average`'s Gaussian averages: ``(sum w)^2 / sum w^2``."""
+def _effective_samples(sigma_frames: float, rest_frame: int, n_frames: int) -> float:
+    """How many frames' worth of samples :func:`rest_average`'s Gaussian averages there: ``(sum w)^2 / sum w^2``.
+
+    Its window cut at the take's ends, as :func:`rest_average` cuts it (at frame 0 about half of the full
+    window's count); the closeness weights and the filter's correlation are not counted.
+    """
     if sigma_frames <= 0:
         return 1.0
     reach = int(2.5 * sigma_frames + 0.5)
-    w = np.exp(-0.5 * (np.arange(-reach, reach + 1) / sigma_frames) ** 2)
+    frames = np.arange(max(0, rest_frame - reach), min(n_frames, rest_frame + reach + 1))
+    w = np.exp(-0.5 * ((frames - rest_frame) / sigma_frames) ** 2)
     return float(w.sum() ** 2 / np.sum(w**2))
 
 
 def _head_motion_report(prepared: PreparedMarkers, stabilize: Any, labels: Sequence[str],
                         rest_frame: int) -> dict[str, Any]:
     """The ``head_motion`` section of ``report.json``: how the head pose was found, how far it moved, and doubts."""
-    from scipy.spatial.transform import Rotation
-
     if stabilize is False or stabilize is None:
         mode = "off"
     elif stabilize is True:
@@ -575,7 +580,8 @@ def _head_motion_report(prepared: PreparedMarkers, stabilize: Any, labels: Seque
     R, t = prepared.head_rotations, prepared.head_translations
     ok = np.isfinite(R).all(axis=(1, 2)) & np.isfinite(t).all(axis=1)
     if ok.any():
-        relative = Rotation.from_matrix(R[ok]) * Rotation.from_matrix(R[ok][0]).inv()
+        reference = R[rest_frame] if ok[rest_frame] else R[ok][0]  # the rest frame's pose, as the translation's
+        relative = Rotation.from_matrix(R[ok]) * Rotation.from_matrix(reference).inv()
         out["max_rotation_deg"] = round(float(np.degrees(relative.magnitude().max())), 3)
         # how far the head's markers travelled: the stabilising motion applied to the rest markers, undone
         rest = prepared.positions[rest_frame]

@@ -101,8 +101,8 @@ def choose_rest_pose(
         The markers' noise per coordinate.
     rest_pose : {'auto', 'scan', 'expression'}, default 'auto'
         See :data:`REST_POSES`. 'auto' keeps the mismatch as an expression when
-        :attr:`~facecap.markers.RestingExpression.is_expression` says so (it is above the noise and
-        neighbouring markers share it).
+        :attr:`~facecap.markers.RestingExpression.is_expression` says so (it is above the noise,
+        neighbouring markers share it or it lies along the take's own motion, and each marker's own part is small).
     neutral_markers : (K, 3) float64 array or None, optional
         A neutral reference in the take's stabilised frame (:func:`neutral_from_frames`,
         :func:`neutral_from_take`): mapped onto ``centres``, whatever ``rest_pose`` says.
@@ -173,7 +173,7 @@ def neutral_from_frames(positions: FloatArray, start: int, stop: int) -> FloatAr
     complete = np.flatnonzero(np.isfinite(window).all(axis=(1, 2)))
     if complete.size == 0:
         raise MarkerError(f"--neutral {start}:{stop}: no frame of the range sees every marker")
-    return _aligned_mean(window, window[complete[0]])
+    return _aligned_mean(window, window[complete[0]])  # finite: the complete frame places itself
 
 
 def neutral_from_take(neutral: MarkerSequence, labels: Sequence[str], rest_markers: FloatArray) -> tuple[FloatArray, list[str]]:
@@ -210,6 +210,12 @@ def neutral_from_take(neutral: MarkerSequence, labels: Sequence[str], rest_marke
     seen = np.isfinite(P).all(axis=2)
     reference = P[int(np.argmax(seen.sum(axis=1)))]
     mean = _aligned_mean(P, reference)
+    captured = np.isfinite(mean).all(axis=1)  # a label the neutral take holds but never saw counts as missing
+    present[np.flatnonzero(present)[~captured]] = False
+    if present.sum() < 4:
+        raise MarkerError(f"the neutral take sees {int(present.sum())} of the take's {len(labels)} markers; "
+                          "at least 4 are needed", path=neutral.source_path)
+    mean = mean[captured]
     fit, _ = robust_rigid_fit(mean, np.asarray(rest_markers, dtype=np.float64)[present])
     out = np.array(rest_markers, dtype=np.float64)
     out[present] = fit.apply(mean)
@@ -219,13 +225,12 @@ def neutral_from_take(neutral: MarkerSequence, labels: Sequence[str], rest_marke
 
 
 def _aligned_mean(window: FloatArray, reference: FloatArray) -> FloatArray:
-    """Mean over frames of ``window`` (t, K, 3) after moving each frame rigidly onto ``reference`` (K, 3)."""
-    fit = rigid_fit(window, reference[None])
-    ok = np.isfinite(fit.rotation).all(axis=(1, 2))
-    moved = fit.apply(window[ok])
+    """Mean over frames of ``window`` (t, K, 3) after moving each frame rigidly onto ``reference`` (K, 3).
+
+    Frames the fit cannot place (fewer than 3 markers seen in both) are left out; a marker no placed
+    frame sees is NaN.
+    """
+    moved = rigid_fit(window, reference[None]).apply(window)  # NaN throughout for a frame it cannot place
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)
-        mean = np.nanmean(moved, axis=0)
-    if not np.isfinite(mean).all():
-        raise MarkerError("the neutral reference does not see every marker in any frame")
-    return mean
+        warnings.simplefilter("ignore", RuntimeWarning)  # a marker no frame sees: NaN, said by the caller
+        return np.nanmean(moved, axis=0)

@@ -357,7 +357,12 @@ def _move_into_place(staging: Path, final: Path, parent: Path, *, marker_file: s
         if final.is_dir() and any(final.iterdir()):  # an earlier result, and overwrite: old aside, new in
             trash = Path(tempfile.mkdtemp(prefix=f".{final.name}.old-", dir=parent))
             os.replace(final, trash / "old")
-            os.replace(staging, final)
+            try:
+                os.replace(staging, final)
+            except OSError:  # something took the name between the two renames: put the earlier result back
+                os.replace(trash / "old", final)
+                os.rmdir(trash)
+                raise
             shutil.rmtree(trash, ignore_errors=True)
         else:
             if final.is_dir():

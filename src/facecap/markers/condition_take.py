@@ -44,7 +44,7 @@ STABLE_MARKER_MOTION_MM = 1.0
 """A marker the head pose rests on that moves further than this from its rest place (95th percentile, after
 stabilisation) moves with the face, not the skull: :func:`moving_stable_markers` names it."""
 
-_JAW_OR_LIPS = re.compile(r"chin|jaw|lip|mouth|mth|crnr|corner", re.IGNORECASE)
+_JAW_OR_LIPS = re.compile(r"chin|jaw|lip|mouth|mth", re.IGNORECASE)
 """Label words of markers on the jaw or the lips, as vendors' face marker sets name them."""
 
 

@@ -7,13 +7,13 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError, MarkerError
-from ..typing import FloatArray
+from ..typing import BoolArray, FloatArray
 from ..validate import as_marker_positions, as_points, as_positive
 from .rigid_fit import RigidTransform, rigid_fit
 
 __all__ = ["RestingExpression", "measure_resting_expression", "robust_rigid_fit", "MIN_COHERENCE",
            "NEIGHBOUR_SCALE_MM", "ABOVE_NOISE", "MISPLACED_MM", "MAX_SCALE_ERROR", "MAX_RESTING_MM",
-           "MOTION_Z_SCORE", "PLACEMENT_LIMIT_MM", "PLACEMENT_LIMIT_PER_NOISE"]
+           "MOTION_Z_SCORE", "PLACEMENT_LIMIT_MM", "PLACEMENT_LIMIT_PER_NOISE", "MIN_RESTING_MM"]
 
 NEIGHBOUR_SCALE_MM = 20.0
 """Gaussian scale (mm) of the neighbourhood that predicts a marker's mismatch from its neighbours'."""
@@ -23,10 +23,14 @@ MIN_COHERENCE = 0.25
 a resting expression with an exact map 0.37 and 0.17 (-0.69 on a 45-marker layout, whose neighbours are far: the
 motion cue catches those); hand-picked maps -0.07 to 0.32; no expression -0.30 to -0.03 (noise)."""
 
-ABOVE_NOISE = 4.0
+ABOVE_NOISE = 2.5
 """How many times the rest markers' noise (RMS, 3-D) the mismatch must reach to count at all. On the tuned takes
-without a resting expression it was 1.2-1.6 times, with one and an exact map 5.4-6.7, with a hand-picked map
-18-23."""
+(rest frame 0, so the rest average is one-sided) without a resting expression it was 0.9-1.2 times, with one and an
+exact map 3.9-4.8, with a hand-picked map 13-17."""
+
+MIN_RESTING_MM = 0.15
+"""And at least this RMS (mm, less calibration): a smaller mismatch is no expression worth keeping, however clean the
+take (a synthetic take of 0.02 mm noise with markers on the skin read with a 1.5 mm offset left 0.04 mm)."""
 
 MOTION_Z_SCORE = 10.0
 """How many standard deviations above what each marker's own error and noise would put there the mismatch along
@@ -116,7 +120,7 @@ class RestingExpression(NamedTuple):
         The mismatch (less ``calibration``, RMS over the markers) over the rest markers' 3-D noise.
     is_significant : bool
         The mismatch (less ``calibration``, RMS over the markers) exceeds :data:`ABOVE_NOISE` times the rest
-        markers' noise (3-D RMS, ``sqrt(3) rest_noise_mm``).
+        markers' noise (3-D RMS, ``sqrt(3) rest_noise_mm``) and :data:`MIN_RESTING_MM`.
     fits_scan : bool
         The take looks like this actor on this scan: its scale within :data:`MAX_SCALE_ERROR` and the mismatch
         (less calibration) within :data:`MAX_RESTING_MM`.
@@ -150,7 +154,7 @@ class RestingExpression(NamedTuple):
     fits_scan: bool
     motion_z: float
     is_expression: bool
-    misplaced: FloatArray
+    misplaced: BoolArray
 
     @property
     def mismatch_mm(self) -> FloatArray:
@@ -365,7 +369,7 @@ def measure_resting_expression(
     motion_z = 0.0 if motion is None else _motion_z(r_free, motion[:, seen], mk, fit.rotation, noise)
     free_rms = float(np.sqrt(np.mean(np.sum(r_free**2, axis=1))))
     above_noise = free_rms / (np.sqrt(3.0) * max(rest_noise, 1e-6))
-    significant = bool(above_noise > ABOVE_NOISE)
+    significant = bool(above_noise > ABOVE_NOISE and free_rms > MIN_RESTING_MM)
     own_rms = float(np.sqrt(np.mean(np.sum(own**2, axis=1))))
     fits = abs(scale_error) <= MAX_SCALE_ERROR and free_rms <= MAX_RESTING_MM
     far = np.linalg.norm(own, axis=1) > max(MISPLACED_MM, 4.0 * own_rms)

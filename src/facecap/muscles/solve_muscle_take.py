@@ -30,6 +30,7 @@ import numpy as np
 
 from ..errors import CorrespondenceError, FacecapWarning, InputError
 from ..io._atomic import final_path
+from ..markers.consensus_stabilize import estimate_marker_noise
 from ..markers.rigid_fit import rigid_fit
 from ..validate import as_positive
 
@@ -301,7 +302,9 @@ def solve_muscle_take(
     # animate's correspondence warp c (Bickel et al. 4.1), built from every usable marker as animate builds
     # it, so both methods see the same markers on the face
     head_pose = None
-    rest_markers = rest_average(prepared.positions, rest_frame, rest_average_s * take.rate)
+    noise_mm = estimate_marker_noise(prepared.raw_positions)  # the rest average weighs samples by it, as animate's
+    rest_markers = rest_average(prepared.positions, rest_frame, rest_average_s * take.rate,
+                                noise_mm=float(noise_mm) if np.isfinite(noise_mm) else None)
     if chosen == "rigid":
         rest_take = rest_markers[keep]
         fit = rigid_fit(rest_take, lifted[keep])

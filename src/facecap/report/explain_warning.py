@@ -63,7 +63,19 @@ _CATALOGUE: tuple[tuple[str, str, str], ...] = (
      "the map; a smooth pattern (mouth corners, brows) to an expression. If the actor has a neutral moment, give "
      "it as the neutral reference; if the map was placed by hand on this scan, the mode can be set explicitly "
      "(see facecap animate --help)."),
+    (r"markers sit .* (further from|closer to) the skin than --marker-offset",
+     "Fitted to the scan, the rest frame's markers sit off the skin by a different height than the marker offset "
+     "says, all together (a shared shift along the skin's normals, not an expression): the markers are flatter "
+     "or taller than assumed, or sit on stalks.",
+     "Give the height the message names with --marker-offset, so that each frame's motion is carried with the "
+     "right offset; at rest the warp absorbs the difference either way."),
     # head motion
+    (r"head pose rests on .* may move with the face",
+     "The markers the head's pose was taken from include one that may move with the face (its label names the "
+     "chin, jaw, lips or mouth, or it moved in the take), so part of its motion can be read as head motion (a jaw "
+     "opening as a nod).",
+     "Nothing if the face looks right in the review. Otherwise name skull or head-band markers with "
+     "--stabilize LABEL,LABEL,... or use --stabilize consensus."),
     (r"no head motion beyond what the expressions move",
      "No set of markers moved rigidly by more than the expressions move the most rigid ones, so facecap found "
      "no head motion to remove and left the take as it was captured.",

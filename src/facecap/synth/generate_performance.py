@@ -6,6 +6,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import igl
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
@@ -630,8 +631,6 @@ def _picked_points(V: FloatArray, F: IntArray, vertices: IntArray, error_mm: flo
     The offset is taken in the tangent plane of the vertex normal and the result is put back on the
     surface by its closest point, as a user's click on the scan would land.
     """
-    import igl
-
     N = vertex_normals_at(V, F, vertices)
     step = rng.normal(scale=error_mm, size=(vertices.size, 3))
     step -= np.einsum("kd,kd->k", step, N)[:, None] * N
