@@ -2,8 +2,9 @@
 
 The bar measured (issue 28): on generated takes (40-120 markers, any rigid mocap frame, a resting
 expression), at least 95 % of the markers placed within 1.5 mm of their true place on the skin, every
-other one reported (not placed, or placed and flagged ambiguous or uncertain); head-band markers found
-off the skin and left out. And on the bundled real take (another person's markers on the bundled ICT
+other one reported (not placed, or placed and flagged ambiguous or uncertain), without flagging most of
+the markers that are within it (false flags: flagged, yet within 1.5 mm); head-band markers found off the
+skin and left out. And on the bundled real take (another person's markers on the bundled ICT
 face: no true place), ``animate`` driven by the found map has a leave-one-marker-out error no worse than
 with the hand-made map.
 
@@ -24,12 +25,14 @@ written), and the written ``map.json`` is read back with :func:`~facecap.io.read
 compared with ``scan.vertices[case.marker_vertices]``.
 
 Tuned seeds are 0-49 (every choice of the method was made looking at them); held-out seeds start at
-1000, with identities, marker counts and expressions drawn from those seeds, never looked at while
-tuning; they are run once, at the end, and reported as they come.
+2000, with identities, marker counts and expressions drawn from those seeds, never looked at while
+tuning; they are run once, at the end, and reported as they come. (Seeds 1000-1049 were the held-out set
+of the first version; they have been looked at since and are no longer held out.)
 
 Per take: the face markers placed within 1.5 mm, the misses reported (flagged or not placed) and not
-reported, the head-band markers placed (must be none), the search's score against the next distinct
-pose, and the job's wall time (a shared machine: the other processes' load is printed beside it).
+reported, the false flags (ambiguous or uncertain, yet within 1.5 mm), the share of placed markers within
+their ``may_be_off_mm``, the head-band markers placed (must be none), the search's score against the next
+distinct pose, and the job's wall time (a shared machine: the other processes' load is printed beside it).
 
 The real take: :func:`leave_one_out` of ``bench_accuracy.py`` on the take conditioned by
 :func:`~facecap.deform.animate_scan.prepare_markers` (``stabilize=True``) with each map; both maps'
@@ -65,7 +68,7 @@ from facecap.synth import (generate_performance, load_ict_sample, bundled_path, 
                            random_rest_expression)
 
 WITHIN_MM = 1.5
-HELD_OUT_FIRST_SEED = 1000
+HELD_OUT_FIRST_SEED = 2000
 FRAMES = 600
 
 
@@ -104,6 +107,9 @@ def run_take(seed: int, work: Path) -> dict[str, Any]:
     error[face] = np.linalg.norm(corr.points(V)[[rows.index(k) for k in face]] - truth[face], axis=1)
     status = [row["status"] for row in report["markers"]]
     flagged = np.array([s in ("ambiguous", "uncertain") for s in status[:M]])
+    uncertain = np.array([s == "uncertain" for s in status[:M]])
+    estimate = np.array([np.nan if row["may_be_off_mm"] is None else row["may_be_off_mm"]
+                         for row in report["markers"][:M]])
     placed = np.isfinite(error)
     within = placed & (error <= WITHIN_MM)
     return {
@@ -112,6 +118,9 @@ def run_take(seed: int, work: Path) -> dict[str, Any]:
         "missed_reported": int((~within & (~placed | flagged)).sum()),
         "missed_unreported": int((placed & ~within & ~flagged).sum()),
         "not_placed": int((~placed).sum()), "flagged": int(flagged.sum()),
+        "false_flags": int((flagged & within).sum()), "uncertain": int(uncertain.sum()),
+        "uncertain_false": int((uncertain & within).sum()),
+        "within_estimate": int((placed & (error <= estimate)).sum()), "placed": int(placed.sum()),
         "head_band_placed": int(sum(s in ("placed", "ambiguous", "uncertain") for s in status[M:])),
         "median_mm": float(np.median(error[placed])) if placed.any() else None,
         "max_placed_mm": float(error[placed].max()) if placed.any() else None,
@@ -129,6 +138,10 @@ def summarise(takes: list[dict[str, Any]]) -> dict[str, Any]:
         "missed_reported": sum(t["missed_reported"] for t in takes),
         "missed_unreported": sum(t["missed_unreported"] for t in takes),
         "flagged": sum(t["flagged"] for t in takes),
+        "false_flags": sum(t["false_flags"] for t in takes),
+        "uncertain": sum(t["uncertain"] for t in takes),
+        "uncertain_false": sum(t["uncertain_false"] for t in takes),
+        "within_estimate": sum(t["within_estimate"] for t in takes) / sum(t["placed"] for t in takes),
         "head_band_markers": sum(t["head_band"] for t in takes),
         "head_band_placed": sum(t["head_band_placed"] for t in takes),
         "takes_below_95": sum(t["within_fraction"] < 0.95 for t in takes),
@@ -195,7 +208,10 @@ def markdown(results: dict[str, Any]) -> str:
         lines += [
             f"**{title}**: {s['takes']} takes, {s['markers']} face markers; placed within {WITHIN_MM} mm of the "
             f"true place: **{100 * s['within_fraction']:.2f} %**; the other markers: {s['missed_reported']} reported "
-            f"(not placed, or flagged), {s['missed_unreported']} not reported; {s['flagged']} markers flagged in all; "
+            f"(not placed, or flagged), {s['missed_unreported']} not reported; {s['flagged']} markers flagged in all, "
+            f"{s['false_flags']} of them within {WITHIN_MM} mm (false flags; uncertain: {s['uncertain']} flagged, "
+            f"{s['uncertain_false']} false); placed markers within their `may_be_off_mm`: "
+            f"{100 * s['within_estimate']:.1f} %; "
             f"head-band markers placed: {s['head_band_placed']} of {s['head_band_markers']}; takes under 95 %: "
             f"{s['takes_below_95']}; search unsure: {s['takes_unsure']}. Worst take: seed {w['seed']} ({w['markers']} "
             f"markers, resting expression {w['expression']}): {100 * w['within_fraction']:.1f} % within, "
@@ -243,7 +259,7 @@ def main() -> None:
                 takes.append(t)
                 print(f"{key} seed {seed}: {t['markers']} markers, band {t['head_band']}, within "
                       f"{100 * t['within_fraction']:.1f} %, missed reported {t['missed_reported']} / not "
-                      f"{t['missed_unreported']}, band placed {t['head_band_placed']}, score {t['score_mm']:.2f} / "
+                      f"{t['missed_unreported']}, flagged {t['flagged']} (false {t['false_flags']}), band placed {t['head_band_placed']}, score {t['score_mm']:.2f} / "
                       f"{t['second_score_mm']}, {t['seconds']:.1f} s (others {t['other_cores']:.1f} cores)", flush=True)
             results[key] = {"takes": takes, "summary": summarise(takes)}
         if not args.no_real:

@@ -65,6 +65,13 @@ def test_the_report_names_every_marker_and_leaves_the_head_band_out(mapped) -> N
     assert on_disk["search"]["from"] == "global search" and on_disk["search"]["sure"]
     assert sum(on_disk["counts"].values()) == len(take.labels)
     assert any("HB0" in line and "off the skin" in line for line in report["summary"])
+    estimate = {row["label"]: row["may_be_off_mm"] for row in on_disk["markers"]}
+    assert all((estimate[s] is None) == (s not in placed) for s in status)
+    uncertain = [s for s, v in status.items() if v == "uncertain"]
+    assert all(estimate[s] >= 1.0 for s in uncertain)  # over 1 mm, rounded to 0.01 in the report
+    line = [line for line in report["summary"] if "uncertain" in line]
+    assert len(line) == (1 if uncertain else 0)
+    assert all(f"{s} ({estimate[s]:.1f} mm)" in line[0] for s in uncertain)
     image = imread(picture)
     assert image.shape[:2] == (1150, 1000)
 

@@ -46,6 +46,8 @@ from .register_scans import (
 from .register_template_to_scan import DEFAULT_CLOSEST_POINT_WEIGHTS, TemplateRegistration, register_template_to_scan
 from .rigid_icp import ClosestPointSurface, IcpResult, rigid_icp, rigid_icp_to_surface
 from .find_marker_map import (
+    ALONG_SKIN_FLOOR_MM,
+    ALONG_SKIN_PER_HEIGHT,
     DEFAULT_AMBIGUITY_MM,
     DEFAULT_OFF_SKIN_MM,
     DEFAULT_UNCERTAIN_MM,
@@ -88,6 +90,8 @@ __all__ = [
     "DEFAULT_OFF_SKIN_MM",
     "DEFAULT_AMBIGUITY_MM",
     "DEFAULT_UNCERTAIN_MM",
+    "ALONG_SKIN_FLOOR_MM",
+    "ALONG_SKIN_PER_HEIGHT",
     "UNSURE_SCORE_RATIO",
     "map_markers",
     "map_side_files",

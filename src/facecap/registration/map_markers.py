@@ -11,7 +11,8 @@ The job reads nothing and parses nothing: it takes a scan and a take, prepares t
   none: read against a scan in another unit, the points no longer lie on it, and ``animate``'s unit
   check says so.
 - ``map_report.json`` beside it (``<name>_report.json`` for a map named ``<name>.json``): every
-  marker's status, its height over the skin, the pose and how sure the search was.
+  marker's status, its height over the skin, how far its place may be off along the skin
+  (``may_be_off_mm``), the pose and how sure the search was.
 - ``map.png`` beside it (``<name>.png``): the scan seen from the front with each marker's place and label.
 
 Markers not placed are left out of the map (the take keeps them: ``animate`` uses markers outside the
@@ -190,15 +191,19 @@ def _summary_lines(report: dict[str, Any], out: Path) -> list[str]:
         lines.append(f"warning: the markers fit this scan loosely, so a marker counts as off the skin only beyond "
                      f"{fit['off_skin_limit_mm']:.1f} mm (else {DEFAULT_OFF_SKIN_MM:g} mm)")
     by_status: dict[str, list[str]] = {}
-    for row in report["markers"]:
-        by_status.setdefault(row["status"], []).append(row["label"])
+    rows = sorted(report["markers"], key=lambda row: -(row["may_be_off_mm"] or 0.0))  # the likeliest misses first
+    for row in rows:
+        label = row["label"]
+        if row["status"] == "uncertain":
+            label += f" ({row['may_be_off_mm']:.1f} mm)"
+        by_status.setdefault(row["status"], []).append(label)
     words = {
         "not seen": "not placed, missing at the rest frame",
         "off the skin": "not placed, off the skin (head band, hair, or not on this scan)",
         "past the rim": "not placed, over a hole or past the scan's rim",
         "ambiguous": "placed ambiguously, another sheet of skin close under them (lips, eyelids): check",
-        "uncertain": "placed, but sitting off the marker offset (a resting expression, or a face unlike the "
-                     "scan's): check",
+        "uncertain": "placed, but uncertain: the resting face differs from the scan there (the fit left them off "
+                     "the marker offset), so each may be off along the skin by up to the mm shown: check",
     }
     for status, text in words.items():
         if by_status.get(status):
@@ -307,6 +312,8 @@ def map_markers(
                                      else round(float(found.heights[k] - offset), 3)),
             "second_sheet_mm": (None if not np.isfinite(found.second_sheet_mm[k])
                                 else round(float(found.second_sheet_mm[k]), 2)),
+            "may_be_off_mm": (None if not np.isfinite(found.may_be_off_mm[k])
+                              else round(float(found.may_be_off_mm[k]), 2)),
         })
     counts = {s: status.count(s) for s in ("placed", "ambiguous", "uncertain", "off the skin", "past the rim",
                                            "not seen")}
