@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 import sys
 import time
@@ -9,7 +10,7 @@ import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, NamedTuple, Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -19,7 +20,7 @@ from ..errors import FacecapWarning, MarkerError
 from ..io.read_correspondence import Correspondence, match_correspondence
 from ..io.export_result import parse_export_formats
 from ..io.result_rig import ResultRig
-from ..io.write_performance import PerformanceWriter
+from ..io.write_performance import PerformanceWriter, import_writers
 from ..markers.choose_temporal_sigma import TemporalSigmaChoice
 from ..markers.condition_take import condition_take, moving_stable_markers
 from ..markers.consensus_stabilize import estimate_marker_noise
@@ -97,6 +98,30 @@ class PreparedMarkers:
     head_pose_from: str | None = None
 
 
+def check_take_against_map(markers: MarkerSequence, correspondence: Correspondence,
+                           rest_frame: int) -> tuple[Correspondence, list[int], list[str]]:
+    """The map's markers in the take, checked before any long work: ``(matched map, take columns, ignored labels)``.
+
+    Raises MarkerError if the rest frame is out of range, fewer than 4 markers of the take are in the map,
+    or every mapped marker is missing at the rest frame.
+    """
+    T = markers.n_frames
+    if not (0 <= rest_frame < T):
+        raise MarkerError(f"--rest-frame {rest_frame} is outside the take (0..{T - 1})", path=markers.source_path)
+    corr, columns, ignored = match_correspondence(correspondence, markers.labels)
+    if len(columns) < _MIN_MARKERS:
+        raise MarkerError(
+            f"only {len(columns)} marker(s) of the take are in the map; at least {_MIN_MARKERS} are needed",
+            path=markers.source_path,
+        )
+    if not (~np.isnan(markers.positions[rest_frame, columns]).any(axis=1)).any():
+        raise MarkerError(
+            f"every mapped marker is missing at the rest frame {rest_frame}; choose another --rest-frame",
+            path=markers.source_path,
+        )
+    return corr, columns, ignored
+
+
 def prepare_markers(
     markers: MarkerSequence,
     scan: Mesh,
@@ -140,25 +165,11 @@ def prepare_markers(
         If the rest frame is out of range, every mapped marker is missing at
         the rest frame, or fewer than 4 markers are usable.
     """
-    T = markers.n_frames
-    if not (0 <= rest_frame < T):
-        raise MarkerError(f"--rest-frame {rest_frame} is outside the take (0..{T - 1})", path=markers.source_path)
+    corr, columns, ignored = check_take_against_map(markers, correspondence, rest_frame)
     notes: list[str] = []
-    corr, columns, ignored = match_correspondence(correspondence, markers.labels)
     if ignored:
         notes.append(f"markers not in the map, used only for stabilisation: {', '.join(ignored)}")
-    if len(columns) < _MIN_MARKERS:
-        raise MarkerError(
-            f"only {len(columns)} marker(s) of the take are in the map; at least {_MIN_MARKERS} are needed",
-            path=markers.source_path,
-        )
     raw = markers.positions
-    seen_at_rest = ~np.isnan(raw[rest_frame, columns]).any(axis=1)
-    if not seen_at_rest.any():
-        raise MarkerError(
-            f"every mapped marker is missing at the rest frame {rest_frame}; choose another --rest-frame",
-            path=markers.source_path,
-        )
 
     conditioned = condition_take(
         markers, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth, preferred_stable=ignored,
@@ -357,52 +368,49 @@ def animate_scan(
             print(f"facecap: {message}", file=sys.stderr, flush=True)
 
     t0 = time.perf_counter()
+    # Checked before the long set-up: the map against the take, and a neutral take against its labels
+    matched, _, _ = check_take_against_map(markers, correspondence, rest_frame)
+    shared = len(set(neutral.labels) & set(matched.labels)) if isinstance(neutral, MarkerSequence) else _MIN_MARKERS
+    if shared < _MIN_MARKERS:
+        raise MarkerError(f"the neutral take holds {shared} of the map's markers; at least {_MIN_MARKERS} are needed",
+                          path=neutral.source_path)
+    # the markers the shell is built for: every matched one (the conditioning drops one only when it cannot
+    # recover it at the rest frame; then the shell is built again)
+    planned = np.asarray(matched.vertex_indices[np.arange(len(matched.labels)), np.argmax(matched.weights, axis=1)],
+                         dtype=np.int64)
+    # compiled modules the work beside the set-up (the stabiliser's smoothing) and the writer at the end load,
+    # loaded here on this thread, before the other starts (see below)
+    importlib.import_module("scipy.signal")
+    import_writers(exports)
     with warnings.catch_warnings(record=True) as records, ThreadPoolExecutor(1) as beside_setup:
         warnings.simplefilter("always", FacecapWarning)
-        t = time.perf_counter()
-        stage(f"conditioning {markers.n_frames} frames x {markers.n_markers} markers")
-        prepared = prepare_markers(
-            markers, scan, correspondence, rest_frame=rest_frame, stabilize=stabilize, smooth=smooth,
-            temporal_sigma_s=temporal_sigma_s,
-        )
-        timings["condition_markers_s"] = time.perf_counter() - t
-
-        noise_mm = estimate_marker_noise(prepared.raw_positions)
-        noise_mm = float(noise_mm) if np.isfinite(noise_mm) else 0.0
-        rest_markers = check_warp_sources(rest_average(prepared.positions, rest_frame, rest_average_s * markers.rate,
-                                                       noise_mm=noise_mm))
-        neutral_markers = None
-        if isinstance(neutral, MarkerSequence):
-            neutral_markers, neutral_notes = neutral_from_take(neutral, prepared.labels, rest_markers)
-            prepared.notes.extend(neutral_notes)
-        elif neutral is not None:
-            neutral_markers = neutral_from_frames(prepared.positions, *neutral)
-        head_motion = _head_motion_report(prepared, stabilize, markers.labels, rest_frame)
-        for label, why in head_motion["moving_stable_markers"].items():
-            warnings.warn(f"the head pose rests on {label}, which may move with the face ({why}); name skull or "
-                          "head-band markers with --stabilize LABELS if the face looks like it nods", FacecapWarning,
-                          stacklevel=2)
-
         # Beside the set-up, on a second thread: its sparse solves keep one core busy, not two (measured
-        # at 700k vertices). The mesh check (a report only: the shell handles what it finds on its own)
-        # and the marker side: the mesh round the markers, the warp and every frame through it. One
-        # OpenBLAS thread meanwhile (the set-up itself uses MKL): a second would only contend for the
-        # core PARDISO's solves use. Not beside the conditioning: its BLAS calls use both cores. Nothing
-        # beside it imports a compiled module: a library loading on one thread while another loads
-        # one can deadlock (seen: usd-core's initialisers against PARDISO's ctypes load of MKL).
+        # at 700k vertices). The markers' side (conditioning, the rest pose, the mesh round the markers,
+        # the warp and every frame through it), then the mesh check (a report only: the shell handles
+        # what it finds on its own). One OpenBLAS thread meanwhile (the set-up itself uses MKL): a second
+        # would only contend for the core PARDISO's solves use. Nothing beside it imports a compiled
+        # module: a library loading on one thread while another loads one can deadlock (seen: usd-core's
+        # initialisers against PARDISO's ctypes load of MKL); the marker modules import theirs at the top.
         t = time.perf_counter()
         with threadpool_limits(limits={"openblas": 1}):
+            stage(f"conditioning {markers.n_frames} frames x {markers.n_markers} markers, beside the set-up")
+            marker_run = beside_setup.submit(
+                _timed, _markers_side, scan, markers, correspondence, rest_frame=rest_frame, stabilize=stabilize,
+                smooth=smooth, temporal_sigma_s=temporal_sigma_s, rest_average_s=rest_average_s, neutral=neutral,
+                marker_offset_mm=marker_offset_mm, rest_pose=rest_pose)
             mesh_check_run = beside_setup.submit(_timed, check_mesh, scan.vertices, scan.faces)
-            marker_side_run = beside_setup.submit(_timed, _marker_side, scan, prepared, rest_markers, marker_offset_mm,
-                                                  rest_pose, neutral_markers, noise_mm,
-                                                  _effective_samples(rest_average_s * markers.rate, rest_frame,
-                                                                     markers.n_frames))
-            stage(f"factoring the thin shell: {scan.n_vertices} vertices, {len(prepared.labels)} markers")
+            stage(f"factoring the thin shell: {scan.n_vertices} vertices, {planned.size} markers")
+            solver = ThinShellSolver(
+                scan.vertices, scan.faces, planned,
+                ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
+            )
+            side, timings["condition_and_warp_s"] = marker_run.result()
+        prepared, ring, centres, warp, face_markers, chosen, head_motion = side
+        if not np.array_equal(prepared.constrained_vertices, planned):
             solver = ThinShellSolver(
                 scan.vertices, scan.faces, prepared.constrained_vertices,
                 ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
             )
-            (ring, centres, warp, face_markers, chosen), timings["correspondence_warp_s"] = marker_side_run.result()
         if chosen.warn:
             warnings.warn(f"rest pose: {chosen.reason}", FacecapWarning, stacklevel=2)
         offset_error = chosen.measurement.offset_error_mm
@@ -528,6 +536,48 @@ def _sigma_report(prepared: PreparedMarkers) -> dict[str, Any] | None:
             "scored_frames": choice.scored_frames}
 
 
+class _MarkersSide(NamedTuple):
+    prepared: PreparedMarkers
+    ring: MarkerRing
+    centres: np.ndarray
+    warp: TriharmonicWarp
+    face_markers: np.ndarray
+    chosen: RestPose
+    head_motion: dict[str, Any]
+
+
+def _markers_side(scan: Mesh, markers: MarkerSequence, correspondence: Correspondence, *, rest_frame: int,
+                  stabilize: Any, smooth: bool, temporal_sigma_s: float | str, rest_average_s: float,
+                  neutral: Any, marker_offset_mm: float, rest_pose: str) -> _MarkersSide:
+    """Everything of :func:`animate_scan` that needs the markers and not the shell, run beside its set-up.
+
+    The take conditioned (:func:`prepare_markers`), its rest markers (averaged, or a neutral reference),
+    the head motion's report (and a warning per marker of the rigid set that may move with the face), and
+    the markers' side of the scan with the rest pose chosen (:func:`_marker_side`).
+    """
+    prepared = prepare_markers(markers, scan, correspondence, rest_frame=rest_frame, stabilize=stabilize,
+                               smooth=smooth, temporal_sigma_s=temporal_sigma_s)
+    noise_mm = estimate_marker_noise(prepared.raw_positions)
+    noise_mm = float(noise_mm) if np.isfinite(noise_mm) else 0.0
+    rest_markers = check_warp_sources(rest_average(prepared.positions, rest_frame, rest_average_s * markers.rate,
+                                                   noise_mm=noise_mm))
+    neutral_markers = None
+    if isinstance(neutral, MarkerSequence):
+        neutral_markers, neutral_notes = neutral_from_take(neutral, prepared.labels, rest_markers)
+        prepared.notes.extend(neutral_notes)
+    elif neutral is not None:
+        neutral_markers = neutral_from_frames(prepared.positions, *neutral)
+    head_motion = _head_motion_report(prepared, stabilize, markers.labels, rest_frame)
+    for label, why in head_motion["moving_stable_markers"].items():
+        warnings.warn(f"the head pose rests on {label}, which may move with the face ({why}); name skull or "
+                      "head-band markers with --stabilize LABELS if the face looks like it nods", FacecapWarning,
+                      stacklevel=2)
+    samples = _effective_samples(rest_average_s * markers.rate, rest_frame, markers.n_frames)
+    ring, centres, warp, face_markers, chosen = _marker_side(scan, prepared, rest_markers, marker_offset_mm,
+                                                              rest_pose, neutral_markers, noise_mm, samples)
+    return _MarkersSide(prepared, ring, centres, warp, face_markers, chosen, head_motion)
+
+
 def _marker_side(scan: Mesh, prepared: PreparedMarkers, rest_markers: np.ndarray, marker_offset_mm: float,
                  rest_pose: str, neutral_markers: np.ndarray | None, noise_mm: float,
                  rest_samples: float) -> tuple[MarkerRing, np.ndarray, TriharmonicWarp, np.ndarray, RestPose]:
@@ -594,10 +644,10 @@ def _head_motion_report(prepared: PreparedMarkers, stabilize: Any, labels: Seque
     return out
 
 
-def _timed(function: Any, *args: Any) -> tuple[Any, float]:
-    """``(function(*args), seconds it took)``, for work run on another thread."""
+def _timed(function: Any, *args: Any, **kwargs: Any) -> tuple[Any, float]:
+    """``(function(*args, **kwargs), seconds it took)``, for work run on another thread."""
     start = time.perf_counter()
-    return function(*args), time.perf_counter() - start
+    return function(*args, **kwargs), time.perf_counter() - start
 
 
 def head_pose_in_scan(prepared: PreparedMarkers, sources: np.ndarray, targets: np.ndarray,
