@@ -29,6 +29,15 @@ from .flesh_model import ElementResponse, FleshModel
 __all__ = ["QuasistaticSolver", "QuasistaticResult", "solve_quasistatic", "ExternalEnergy", "ExternalResponse"]
 
 
+# The projected steps' Marquardt damping (see QuasistaticSolver.solve): the first weight, its factor up
+# and down, the step length below which a step counts as overshooting, and the weight past which a
+# step that finds no decrease ends the solve
+_FIRST_DAMPING = 1e-3
+_DAMPING_GROWTH = 4.0
+_OVERSHOOT_ALPHA = 0.1
+_MAX_DAMPING = 1e3
+
+
 class ExternalResponse(NamedTuple):
     """An external energy term evaluated at one configuration.
 
@@ -211,7 +220,11 @@ class QuasistaticSolver:
         (every tetrahedron's ``d2 psi / dF2`` clamped to positive semi-definite), and the
         exact one is tried again after the next full (alpha = 1) projected step. The
         projected stiffness alone converges only linearly here, since at the equilibrium of
-        a compressed, nearly incompressible flesh many tetrahedra are projected.
+        a compressed, nearly incompressible flesh many tetrahedra are projected. Where a
+        projected step overshoots (the line search keeps under a tenth of it, or finds no
+        decrease), the next ones are damped (``K + mu diag(K)``, ``mu`` from ``1e-3`` up by
+        4x each time, down by 4x after each full step but not below ``1e-3`` again); an exact
+        step that finds no decrease is followed by a projected one from the same point.
         """
         model = self.model
         a = model._activations(activations)
@@ -230,6 +243,8 @@ class QuasistaticSolver:
         iterations = projected_steps = 0
         converged = False
         wait_before_exact = 0  # steps to take with the projected stiffness before trying the exact one
+        damping = 0.0  # Marquardt weight on the projected stiffness's diagonal: raised where its steps overshoot
+        damping_floor = 0.0  # once a step overshot, the damping stays at least the first weight
         while True:
             residual = state.forces[model.free_nodes]
             residual_max = float(np.sqrt((residual**2).sum(axis=1)).max(initial=0.0))
@@ -246,9 +261,11 @@ class QuasistaticSolver:
                 timings["assembly"] += time.perf_counter() - t
             r = residual.reshape(-1)
             step = None
+            exact = False
             if wait_before_exact == 0:
                 assert state.element_stiffness is not None
                 step = self._newton_step(state.element_stiffness, r, timings, extra=extra)
+                exact = step is not None
                 if step is None:
                     wait_before_exact = 1
             if step is None:
@@ -256,7 +273,7 @@ class QuasistaticSolver:
                 t = time.perf_counter()
                 projected = model.element_stiffness(state.stress_derivative, definiteness_fix=True)
                 timings["assembly"] += time.perf_counter() - t
-                step = self._newton_step(projected, r, timings, must_succeed=True, extra=extra)
+                step = self._newton_step(projected, r, timings, must_succeed=True, extra=extra, damping=damping)
                 assert step is not None
                 projected_steps += 1
             t = time.perf_counter()
@@ -264,8 +281,28 @@ class QuasistaticSolver:
             timings["line_search"] += time.perf_counter() - t
             iterations += 1
             if alpha == 0.0 or trial is None:
+                if exact:
+                    # An exact step that positive definiteness let through can still point where the energy
+                    # does not decrease within the halvings (an indefinite region the factor did not see):
+                    # take the projected step from the same point rather than end the solve there
+                    wait_before_exact = 1
+                    continue
+                if damping < _MAX_DAMPING:
+                    damping = max(_DAMPING_GROWTH * damping, _FIRST_DAMPING)
+                    continue
                 break
             state = trial  # energy and forces at the new x; its stiffness only if another step follows
+            if not exact:
+                # The projection sets an active fibre's negative stiffness (the force-length curve's
+                # descending limb) to zero; where little else holds a node in that direction the
+                # projected step is far too long there, and the line search crawls (steps of 1e-9 of
+                # it, seen on an occasional fTetWild mesh, then no decrease at all). A Marquardt
+                # damping shortens such a step where it overshoots and fades once full steps are taken.
+                if alpha < _OVERSHOOT_ALPHA:
+                    damping = max(_DAMPING_GROWTH * damping, _FIRST_DAMPING)
+                    damping_floor = _FIRST_DAMPING  # taken off, the overshoot came back at once (seen)
+                elif alpha == 1.0:
+                    damping = max(damping / _DAMPING_GROWTH, damping_floor)
             if alpha == 1.0 and wait_before_exact > 0:
                 wait_before_exact -= 1
         self._positions, self._activations, self._state = x, a, state
@@ -287,15 +324,20 @@ class QuasistaticSolver:
         return state, sp.csr_matrix(response.stiffness)[free][:, free]
 
     def _newton_step(self, element_stiffness: FloatArray, r: FloatArray, timings: dict[str, float], *,
-                     must_succeed: bool = False, extra: Any = None) -> FloatArray | None:
+                     must_succeed: bool = False, extra: Any = None, damping: float = 0.0) -> FloatArray | None:
         """Solve ``K step = r``; None where ``K`` is not positive definite (unless ``must_succeed``).
 
-        ``extra``: the external energy's free-dof stiffness, added to ``K``.
+        ``extra``: the external energy's free-dof stiffness, added to ``K``. ``damping``: ``K``
+        becomes ``K + damping * diag(K)`` (Marquardt; the diagonal floored at ``1e-8`` of its mean).
         """
         t = time.perf_counter()
         K = self.model.assemble(element_stiffness, free_only=True)
         if extra is not None:
             K = (K + extra).tocsr()
+        if damping > 0.0:
+            diagonal = np.abs(K.diagonal())
+            diagonal = np.maximum(diagonal, 1e-8 * (float(diagonal.mean()) or 1.0))
+            K = (K + sp.diags(damping * diagonal)).tocsr()
         timings["assembly"] += time.perf_counter() - t
         t = time.perf_counter()
         try:
