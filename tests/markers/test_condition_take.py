@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from facecap.errors import MarkerError
-from facecap.markers.condition_take import condition_take
+from facecap.markers.condition_take import condition_take, savitzky_golay
 from facecap.synth import generate_performance
 
 
@@ -95,3 +95,21 @@ def test_skin_head_pose_chooses_between_the_consensus_and_the_rigid_set() -> Non
         np.testing.assert_allclose(out.head_rotations, expected.rotations, atol=1e-12)
     with pytest.raises(MarkerError, match="skin_head_pose"):
         condition_take(case.markers, stabilize=True, skin_head_pose="band")
+
+
+@pytest.mark.parametrize(("n", "window", "order"), [(200, 31, 3), (13, 13, 3), (60, 7, 2), (40, 5, 4)])
+def test_savitzky_golay_matches_scipy(n: int, window: int, order: int) -> None:
+    # scipy.signal's filter (mode 'interp': the end samples from the end windows' fits) is the reference
+    from scipy.signal import savgol_filter
+
+    values = np.random.default_rng(n).normal(size=(n, 3)).cumsum(axis=0)
+    expected = savgol_filter(values, window, order, axis=0, mode="interp")
+    np.testing.assert_allclose(savitzky_golay(values, window, order), expected, rtol=0, atol=1e-9)
+
+
+def test_savitzky_golay_keeps_a_polynomial_of_its_order() -> None:
+    t = np.linspace(-1, 1, 50)
+    cubic = np.stack([1 + 2 * t - t**2 + 0.5 * t**3, t**3], axis=1)
+    np.testing.assert_allclose(savitzky_golay(cubic, 9, 3), cubic, atol=1e-12)
+    with pytest.raises(ValueError, match="odd"):
+        savitzky_golay(cubic, 8, 3)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import json
 import sys
 import time
@@ -378,9 +377,7 @@ def animate_scan(
     # recover it at the rest frame; then the shell is built again)
     planned = np.asarray(matched.vertex_indices[np.arange(len(matched.labels)), np.argmax(matched.weights, axis=1)],
                          dtype=np.int64)
-    # compiled modules the work beside the set-up (the stabiliser's smoothing) and the writer at the end load,
-    # loaded here on this thread, before the other starts (see below)
-    importlib.import_module("scipy.signal")
+    # compiled modules the writer at the end loads, loaded here on this thread, before the other starts (see below)
     import_writers(exports)
     with warnings.catch_warnings(record=True) as records, ThreadPoolExecutor(1) as beside_setup:
         warnings.simplefilter("always", FacecapWarning)

@@ -20,7 +20,8 @@ from .consensus_stabilize import consensus_stabilize, estimate_marker_noise
 from .stabilize_head import Stabilization, stabilize_head
 
 __all__ = ["ConditionedTake", "condition_take", "moving_stable_markers", "DEFAULT_HEAD_MOTION_SIGMA_S",
-           "SKIN_HEAD_POSES", "STILL_HEAD_RATIO", "HEAD_POSE_SOURCES", "STABLE_MARKER_MOTION_MM"]
+           "SKIN_HEAD_POSES", "STILL_HEAD_RATIO", "HEAD_POSE_SOURCES", "STABLE_MARKER_MOTION_MM",
+           "savitzky_golay"]
 
 STILL_HEAD_RATIO = 2.0
 """A head counts as still when its motion is under this many times the disagreement of two estimates of it."""
@@ -341,6 +342,38 @@ def _head_is_still(rigid_set: Stabilization, consensus: Stabilization) -> bool:
     return bool(motion < STILL_HEAD_RATIO * disagreement)
 
 
+def savitzky_golay(values: np.ndarray, window: int, order: int) -> np.ndarray:
+    """Savitzky-Golay smoothing along axis 0: each sample's least-squares polynomial over ``window`` samples.
+
+    ``scipy.signal.savgol_filter(values, window, order, axis=0, mode='interp')`` computes the
+    same (the tests compare them); written here because importing ``scipy.signal`` takes about
+    a second, on the path before a long run's set-up. The first and last ``window // 2``
+    samples take the polynomial fitted to the first and last full window.
+
+    Parameters
+    ----------
+    values : (n, ...) float64 array
+    window : int
+        Odd, ``order < window <= n``.
+    order : int
+        Degree of the local polynomials.
+    """
+    values = np.asarray(values, dtype=np.float64)
+    n, half = len(values), window // 2
+    if window % 2 == 0 or not order < window <= n:
+        raise ValueError(f"window {window}: expected an odd length above the order {order} and at most {n}")
+    positions = np.arange(-half, half + 1, dtype=np.float64)
+    vandermonde = positions[:, None] ** np.arange(order + 1)
+    hat = vandermonde @ np.linalg.pinv(vandermonde)  # fitted values of a window from its samples
+    flat = values.reshape(n, -1)
+    smoothed = np.empty_like(flat)
+    windows = np.lib.stride_tricks.sliding_window_view(flat, window, axis=0)  # (n - window + 1, m, window)
+    smoothed[half:n - half] = windows @ hat[half]
+    smoothed[:half] = hat[:half] @ flat[:window]
+    smoothed[n - half:] = hat[half + 1:] @ flat[n - window:]
+    return smoothed.reshape(values.shape)
+
+
 def _smooth_stabilization(stab: Stabilization, positions: np.ndarray, sigma_frames: float,
                           rest_frame: int) -> Stabilization:
     """Low-pass the stabilising rigid transforms over time and re-apply them to ``positions``.
@@ -348,8 +381,6 @@ def _smooth_stabilization(stab: Stabilization, positions: np.ndarray, sigma_fram
     The residual is recomputed against the rest frame's stable markers, which
     every frame is aligned to.
     """
-    from scipy.signal import savgol_filter  # 1 s to import: only where a take is stabilised
-
     R, t = stab.rotations, stab.translations
     ok = np.all(np.isfinite(R), axis=(1, 2)) & np.all(np.isfinite(t), axis=1)
     if ok.sum() < 3:
@@ -366,8 +397,8 @@ def _smooth_stabilization(stab: Stabilization, positions: np.ndarray, sigma_fram
     window = max(5, int(round(2 * sigma_frames)) * 2 + 1)
     if window >= len(R):
         return stab
-    rv = savgol_filter(rv, window, 3, axis=0, mode="interp")
-    tt = savgol_filter(tt, window, 3, axis=0, mode="interp")
+    rv = savitzky_golay(rv, window, 3)
+    tt = savitzky_golay(tt, window, 3)
     R_s = (mean * Rotation.from_rotvec(rv)).as_matrix()
     moved = RigidTransform(R_s, tt, np.full(len(R_s), np.nan)).apply(positions)
     stable = stab.stable_markers
