@@ -11,7 +11,8 @@ uses a head band when it is rigid, else :func:`consensus_stabilize`
 agree on; :func:`estimate_marker_noise` measures the noise it scales by). :func:`rigid_fit` (``rigid_fit.py``) is the
 batched, NaN-aware Kabsch fit they share, returning a :class:`RigidTransform`;
 :func:`moving_stable_markers` (``condition_take.py``) names the markers a head pose rests on that move
-with the face. :func:`measure_resting_expression` (``resting_expression.py``) measures a take's rest frame
+with the face; :func:`savitzky_golay` (``condition_take.py``) smooths the head poses over time.
+:func:`measure_resting_expression` (``resting_expression.py``) measures a take's rest frame
 against the scan (a :class:`RestingExpression`: the robust rigid fit, :func:`robust_rigid_fit`, and how much
 of the mismatch is an expression the actor holds at rest, by how much of it each marker's neighbours share).
 """
@@ -30,6 +31,7 @@ from .condition_take import (
     auto_stabilize,
     condition_take,
     moving_stable_markers,
+    savitzky_golay,
 )
 from .consensus_stabilize import consensus_stabilize, estimate_marker_noise
 from .fill_gaps import FilledMarkers, fill_gaps
@@ -71,6 +73,7 @@ __all__ = [
     "HEAD_POSE_SOURCES",
     "STABLE_MARKER_MOTION_MM",
     "moving_stable_markers",
+    "savitzky_golay",
     "measure_resting_expression",
     "RestingExpression",
     "robust_rigid_fit",
