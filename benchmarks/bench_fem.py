@@ -36,7 +36,7 @@ import scipy.sparse as sp
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _load import Window  # noqa: E402
 
-from facecap.deform.factor_spd import SpdFactor, available_backends  # noqa: E402
+from facecap.mesh.factor_spd import SpdFactor, available_backends  # noqa: E402
 from facecap.fem import FleshModel, QuasistaticSolver  # noqa: E402
 from facecap.fem.flesh_model import _project_psd  # noqa: E402
 

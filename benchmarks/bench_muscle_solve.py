@@ -85,7 +85,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _load import Window, peak_rss_gb  # noqa: E402
 
 from facecap.anatomy import build_anatomy, load_anatomy  # noqa: E402
-from facecap.deform.factor_spd import available_backends  # noqa: E402
+from facecap.mesh.factor_spd import available_backends  # noqa: E402
 from facecap.muscles import (MuscleControls, MuscleFrame, MuscleModel, MuscleSolver, forward_markers,  # noqa: E402
                              marker_embedding)
 from facecap.synth import choose_marker_vertices, load_ict_sample  # noqa: E402

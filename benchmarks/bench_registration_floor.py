@@ -54,7 +54,7 @@ from cases import add_case_options, chosen_cases, make_case  # noqa: E402
 
 from facecap.blendshapes import nnls_weights  # noqa: E402
 from facecap.cli import main  # noqa: E402
-from facecap.deform.factor_spd import SpdFactor  # noqa: E402
+from facecap.mesh.factor_spd import SpdFactor  # noqa: E402
 from facecap.mesh import laplace_operators  # noqa: E402
 from facecap.registration import DEFAULT_CLOSEST_POINT_WEIGHTS, register_template_to_scan  # noqa: E402
 from facecap.registration.register_scans import DEFAULT_REST_WEIGHT  # noqa: E402

@@ -44,7 +44,7 @@ def assert_recorded_paths_are_final(root: Path) -> int:
 
     No string in any of them holds a staging name (``.partial-``). Every path a JSON file records
     exists: absolute ones as they are, relative ones from the file's own folder (how
-    :func:`facecap.io._atomic.recorded_path` records them).
+    :func:`facecap.io.atomic_write.recorded_path` records them).
     """
     checked = 0
     for path in sorted(root.rglob("*")):

@@ -291,7 +291,7 @@ def test_every_recorded_path_is_final(capture_case, tmp_path, monkeypatch):
     """A job run as a user runs it (relative paths, another working folder) and inside a folder being built."""
     from recorded_paths import assert_recorded_paths_are_final
 
-    from facecap.io._atomic import atomic_folder
+    from facecap.io.atomic_write import atomic_folder
 
     # relative paths from the inputs' folder, the result elsewhere
     monkeypatch.chdir(tmp_path)

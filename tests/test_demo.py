@@ -62,7 +62,7 @@ def test_demo_writes_the_animation_report_and_pictures(tmp_path, capsys):
         image = imread(out / "pictures" / name)
         assert image.ndim == 3 and image.std() > 0.01  # a picture, not a blank canvas
     # no staging folder is left behind (a second run replacing this one is atomic_folder's, tested in
-    # tests/io/test_atomic.py: running the whole demo twice here cost two minutes)
+    # tests/io/test_atomic_write.py: running the whole demo twice here cost two minutes)
     assert [p.name for p in tmp_path.iterdir()] == ["facecap-demo"]
     # every path its files record is final and there: edit-muscles finds the model the take was solved on
     assert assert_recorded_paths_are_final(out) > 50

@@ -83,7 +83,7 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
     from .io.read_mesh import read_mesh
-    from .io._atomic import recorded_path
+    from .io.atomic_write import recorded_path
     from .io.write_performance import check_result_destination
     from .units import check_take_units
 
@@ -563,7 +563,7 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from .blendshapes.scan_workflow import blend_take, conditioned_take_path, plan_scans, register_planned_scans
-    from .io._atomic import check_file_destination, check_folder_destination, ensure_folder
+    from .io.atomic_write import check_file_destination, check_folder_destination, ensure_folder
     from .io.registered_scans import BASES_MARKER_FILE
     from .io.write_performance import check_result_destination
 
@@ -613,7 +613,7 @@ def _add_synth(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
-    from .io._atomic import atomic_folder
+    from .io.atomic_write import atomic_folder
     from .synth.generate_performance import generate_performance, random_identity
     from .synth.ict_sample import load_ict_sample
 
@@ -792,7 +792,7 @@ def _region_mask(path: str, n_vertices: int) -> Any:
 def _cmd_remove_wrinkles(args: argparse.Namespace) -> int:
     from .io.read_mesh import read_mesh
     from .io.write_mesh import write_mesh
-    from .io._atomic import check_file_destination
+    from .io.atomic_write import check_file_destination
     from .wrinkles import remove_wrinkles
 
     check_file_destination(args.out, overwrite=args.overwrite)
@@ -822,7 +822,7 @@ def _cmd_build_anatomy(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from .anatomy import build_anatomy, render_anatomy_layout
-    from .io._atomic import atomic_folder, check_folder_destination
+    from .io.atomic_write import atomic_folder, check_folder_destination
     from .io.read_mesh import read_mesh
 
     check_folder_destination(args.out, marker_file="anatomy.json", overwrite=args.overwrite)  # before the build
@@ -889,7 +889,7 @@ def _add_solve_muscles(sub: argparse._SubParsersAction) -> None:
 def _cmd_solve_muscles(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .io._atomic import recorded_path
+    from .io.atomic_write import recorded_path
     from .io.export_result import parse_export_formats
     from .io.read_markers import read_markers
     from .io.write_performance import check_result_destination

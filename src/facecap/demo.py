@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FacecapWarning, InputError
-from .io._atomic import atomic_folder, recorded_path
+from .io.atomic_write import atomic_folder, recorded_path
 
 __all__ = ["run_demo"]
 
@@ -496,7 +496,7 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
 
     from .cameras import RayCaster, read_camera_file, read_image
     from .deform.animate_scan import animate_scan
-    from .io._atomic import atomic_path
+    from .io.atomic_write import atomic_path
     from .io.mocap_correspondence import read_mocap_correspondence
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers

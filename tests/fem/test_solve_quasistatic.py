@@ -219,7 +219,7 @@ def test_a_singular_projected_stiffness_is_shifted_until_it_factors(backend):
     definite is an error."""
     import scipy.sparse as sp
 
-    from facecap.deform.factor_spd import SpdFactor
+    from facecap.mesh.factor_spd import SpdFactor
     from facecap.errors import SolverError
 
     X, T = box_tets((1, 1, 1), (1.0, 1.0, 1.0))
@@ -246,7 +246,7 @@ def test_jacobians_come_from_the_shifted_factor_when_the_projected_stiffness_is_
     -4, seen in the demo on one fTetWild mesh), they come from its smallest working shift instead of
     ending the take. The refusal is simulated on a well-posed block, so the shifted solve can be checked
     against the unshifted one."""
-    from facecap.deform.factor_spd import SpdFactor
+    from facecap.mesh.factor_spd import SpdFactor
     from facecap.errors import SolverError
 
     module = importlib.import_module("facecap.fem.solve_quasistatic")

@@ -1,16 +1,18 @@
-"""Tests for facecap.io._atomic: all-or-nothing file writes."""
+"""Tests for facecap.io.atomic_write: all-or-nothing file writes."""
 
 from __future__ import annotations
 
 import errno
+import importlib
 import os
 
 import pytest
 
 from facecap.errors import InputError
-from facecap.io import _atomic
-from facecap.io._atomic import (atomic_folder, atomic_path, atomic_write_text, check_file_destination,
-                                check_folder_destination, final_path, recorded_path, resolve_recorded_path)
+from facecap.io.atomic_write import (atomic_folder, atomic_path, atomic_write_text, check_file_destination,
+                                     check_folder_destination, final_path, recorded_path, resolve_recorded_path)
+
+atomic_module = importlib.import_module("facecap.io.atomic_write")  # the module, for patching what it calls
 
 
 def _leftovers(folder):
@@ -215,7 +217,7 @@ def test_an_overwrite_that_fails_between_its_renames_puts_the_earlier_result_bac
         return real_replace(src, dst)
 
     with monkeypatch.context() as patch:
-        patch.setattr(_atomic.os, "replace", second_fails)
+        patch.setattr(atomic_module.os, "replace", second_fails)
         with pytest.raises(InputError, match="result-2"):
             with atomic_folder(final, marker_file="done.json", overwrite=True) as stage:
                 (stage / "done.json").write_text("new")
@@ -249,7 +251,7 @@ def test_an_unwritable_destination_names_the_folder_and_the_cause(tmp_path, monk
             raise OSError(code, os.strerror(code), os.path.join(kwargs.get("dir", ""), ".out.partial-1234"))
 
         with monkeypatch.context() as patch:
-            patch.setattr(_atomic.tempfile, "mkdtemp", refuse)
+            patch.setattr(atomic_module.tempfile, "mkdtemp", refuse)
             with pytest.raises(InputError) as info:
                 with atomic_folder(tmp_path / "out", marker_file="done.json"):
                     pass  # pragma: no cover
@@ -276,7 +278,7 @@ def test_a_single_file_that_cannot_be_written_names_the_file_and_the_cause(tmp_p
         return real_open(path, flags, *args)
 
     with monkeypatch.context() as patch:
-        patch.setattr(_atomic.os, "open", read_only)
+        patch.setattr(atomic_module.os, "open", read_only)
         with pytest.raises(InputError) as info:
             with atomic_path(tmp_path / "plan.json"):
                 pass  # pragma: no cover

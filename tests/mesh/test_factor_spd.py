@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from facecap.deform.factor_spd import SpdFactor, available_backends
+from facecap.mesh.factor_spd import SpdFactor, available_backends
 from facecap.errors import InputError, SolverError
 
 

@@ -1,6 +1,6 @@
 import numpy as np
 
-from facecap.blendshapes.fit_bases_to_markers import fit_bases_to_markers
+from facecap.registration.fit_bases_to_markers import fit_bases_to_markers
 from facecap.synth import load_ict_sample
 
 

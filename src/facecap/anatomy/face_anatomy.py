@@ -16,7 +16,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import FileFormatError, InputError
-from ..io._atomic import atomic_path, atomic_write_text, recorded_path, resolve_recorded_path
+from ..io.atomic_write import atomic_path, atomic_write_text, recorded_path, resolve_recorded_path
 from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from .skin_embedding import SkinEmbedding, embedding_matrix
@@ -181,7 +181,7 @@ class FaceAnatomy:
         """Write ``anatomy.npz`` and ``anatomy.json`` into ``folder`` (created if needed).
 
         Each file is written under a temporary name and renamed when complete
-        (:func:`~facecap.io._atomic.atomic_path`); the JSON, written last,
+        (:func:`~facecap.io.atomic_write.atomic_path`); the JSON, written last,
         marks a finished model.
 
         Parameters

@@ -16,7 +16,7 @@ from matplotlib.collections import PolyCollection
 from matplotlib.figure import Figure
 
 from ..errors import InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 from .anatomy_landmarks import face_frame
 from .face_anatomy import FaceAnatomy
 

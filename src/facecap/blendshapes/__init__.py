@@ -8,8 +8,6 @@ In the order a user meets them:
 - :func:`select_scan_frames` (``select_scan_frames.py``): the fewest frames of
   a conditioned take whose non-negative blends rebuild every frame (sec. 4,
   Algorithm 1), as a :class:`ScanPlan`.
-- :func:`fit_bases_to_markers` (``fit_bases_to_markers.py``): registered scans
-  deformed to match their frame's markers exactly (section 7).
 - :func:`nnls_weights` (``nnls_weights.py``): non-negative weights of many
   frames at once (eqs. 3 and 12), as :class:`NnlsWeights`.
 - :func:`blend_weights`, :func:`blend_weights_with_head_pose` (the weights and
@@ -22,7 +20,6 @@ The scan registration itself lives in :mod:`facecap.registration`.
 
 from __future__ import annotations
 
-from .fit_bases_to_markers import fit_bases_to_markers
 from .nnls_weights import NnlsWeights, nnls_weights
 from .reconstruct_performance import (
     BlendWithPose,
@@ -40,7 +37,6 @@ __all__ = [
     "conditioned_take_path",
     "select_scan_frames",
     "ScanPlan",
-    "fit_bases_to_markers",
     "nnls_weights",
     "NnlsWeights",
     "blend_weights",

@@ -19,7 +19,7 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import FacecapWarning, InputError
-from ..io._atomic import check_file_destination, check_folder_destination, recorded_path
+from ..io.atomic_write import check_file_destination, check_folder_destination, recorded_path
 from ..io.conditioned_take import file_sha256, read_conditioned_take, write_conditioned_take
 from ..io.read_markers import read_markers
 from ..io.read_mesh import read_mesh

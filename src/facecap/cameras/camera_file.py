@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..io._atomic import atomic_write_text
+from ..io.atomic_write import atomic_write_text
 from ..units import mm_per_unit, normalize_unit
 from .camera import Camera
 from .synchronize import FootageSync, synchronize

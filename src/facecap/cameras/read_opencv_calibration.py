@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 from ..units import mm_per_unit, normalize_unit
 from .camera import Camera
 

@@ -12,7 +12,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..errors import InputError
-from ..io._atomic import atomic_folder
+from ..io.atomic_write import atomic_folder
 from .image_file import IMAGE_SUFFIXES, write_image
 
 __all__ = ["write_image_sequence", "SEQUENCE_FILE"]

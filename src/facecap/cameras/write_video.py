@@ -12,7 +12,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..errors import InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 from ..validate import as_positive
 
 __all__ = ["write_video", "LOSSLESS_VIDEO_CODECS"]

@@ -20,8 +20,6 @@ In the order a user meets them:
   displacements, the markers' height above the skin carried with the surface;
   :func:`marker_ring` its mesh side (the triangles round the markers, the scan's
   normals there), which needs no shell.
-- :class:`SpdFactor` (``factor_spd.py``): the sparse SPD factorisation
-  (PARDISO, or SciPy's SuperLU where MKL is missing).
 - :func:`rbf_deformation_basis` (``rbf_deform.py``): the warp alone, the
   baseline the shell must beat.
 - :func:`principal_targets_from_rig`, :func:`principal_targets`
@@ -37,7 +35,6 @@ from __future__ import annotations
 
 from .animate_scan import AnimationResult, PreparedMarkers, animate_scan, prepare_markers
 from .basis_product import BasisProduct, Precision
-from .factor_spd import SpdFactor, available_backends
 from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, DEFAULT_OFFSET_ITERATIONS, MarkerOffsets, MarkerRing, marker_ring
 from .principal_targets import PrincipalTargets, principal_targets, principal_targets_from_rig
 from .rbf_deform import rbf_deformation_basis
@@ -70,8 +67,6 @@ __all__ = [
     "marker_ring",
     "DEFAULT_MARKER_OFFSET_MM",
     "DEFAULT_OFFSET_ITERATIONS",
-    "SpdFactor",
-    "available_backends",
     "rbf_deformation_basis",
     "principal_targets_from_rig",
     "principal_targets",

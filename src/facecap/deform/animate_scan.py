@@ -29,7 +29,7 @@ from ..structures import MarkerSequence, Mesh
 from ..units import check_take_units, mm_per_unit
 from ..validate import as_positive
 from .basis_product import Precision
-from .factor_spd import Backend
+from ..mesh.factor_spd import Backend
 from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, MarkerOffsets, MarkerRing, marker_ring
 from .rest_pose import RestPose, choose_rest_pose, neutral_from_frames, neutral_from_take
 from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces

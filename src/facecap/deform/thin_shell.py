@@ -18,7 +18,7 @@ from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..typing import FloatArray, IntArray
 from ..validate import as_faces, as_positive, as_vertices
 from .basis_product import BasisProduct, Precision
-from .factor_spd import Backend, SpdFactor
+from ..mesh.factor_spd import Backend, SpdFactor
 
 __all__ = ["ThinShellSolver", "PieceReport", "thin_shell_deform", "DEFAULT_KS", "DEFAULT_KB_MM2"]
 

@@ -21,7 +21,7 @@ from typing import Any, Literal, NamedTuple, Protocol
 import numpy as np
 import scipy.sparse as sp
 
-from ..deform.factor_spd import SpdFactor
+from ..mesh.factor_spd import SpdFactor
 from ..errors import FacecapWarning, InputError, SolverError
 from ..typing import FloatArray
 from .flesh_model import ElementResponse, FleshModel
@@ -114,7 +114,7 @@ class QuasistaticSolver:
     ----------
     model : FleshModel
     backend : {'auto', 'pardiso', 'scipy'}, default 'auto'
-        Sparse factorisation (:class:`facecap.deform.SpdFactor`): MKL PARDISO where it
+        Sparse factorisation (:class:`facecap.mesh.SpdFactor`): MKL PARDISO where it
         loads, else SciPy's SuperLU.
     tolerance : float, default 1e-4
         Converged when every free node's residual force is below

@@ -41,12 +41,20 @@ In the order a user meets them:
   (``conditioned_take.py``): the take conditioned once by ``plan-scans`` and read
   by the later steps, with :func:`file_sha256` to tell it is the same take.
 
+- :func:`atomic_path`, :func:`atomic_folder`, :func:`atomic_write_text`
+  (``atomic_write.py``): how every writer writes (under a hidden name, renamed into
+  place when finished), with :func:`check_file_destination`,
+  :func:`check_folder_destination`, :func:`ensure_folder`, and the paths a written
+  file records (:func:`recorded_path`, :func:`resolve_recorded_path`, :func:`final_path`).
+
 The functions share their modules' names, so ``facecap.io.read_mesh`` is the
 function; reach a module itself with ``importlib.import_module``.
 """
 
 from __future__ import annotations
 
+from .atomic_write import (atomic_folder, atomic_path, atomic_write_text, check_file_destination,
+                           check_folder_destination, ensure_folder, final_path, recorded_path, resolve_recorded_path)
 from .read_correspondence import (MAP_FORMATS, Correspondence, CorrespondenceMatch, match_correspondence,
                                   read_correspondence)
 from .mocap_correspondence import read_mocap_correspondence, write_mocap_correspondence
@@ -150,4 +158,13 @@ __all__ = [
     "read_conditioned_take",
     "CONDITIONED_TAKE_FORMAT",
     "file_sha256",
+    "atomic_folder",
+    "atomic_path",
+    "atomic_write_text",
+    "check_file_destination",
+    "check_folder_destination",
+    "ensure_folder",
+    "final_path",
+    "recorded_path",
+    "resolve_recorded_path",
 ]

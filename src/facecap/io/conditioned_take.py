@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import FileFormatError
 from ..markers.condition_take import ConditionedTake
-from ._atomic import atomic_path
+from .atomic_write import atomic_path
 
 __all__ = ["file_sha256", "read_conditioned_take", "write_conditioned_take", "CONDITIONED_TAKE_FORMAT"]
 

@@ -46,7 +46,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import FacecapWarning, InputError
-from ._atomic import ensure_folder
+from .atomic_write import ensure_folder
 from .read_result import Result, read_result
 from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, file_sizes
 
@@ -238,7 +238,7 @@ def _same_rest_obj(result: Result, path: Path) -> bool:
 
 def _record(folder: Path, report: dict[str, Any]) -> None:
     """Add the export reports and file sizes to ``performance.json`` (rewritten atomically)."""
-    from ._atomic import atomic_write_text
+    from .atomic_write import atomic_write_text
 
     path = folder / "performance.json"
     info = json.loads(path.read_text())
@@ -302,7 +302,7 @@ def _export_usd_rig(result: Result, path: Path, *, progress: bool, usd_shapes: s
 def _export_frames(fmt: str):
     def export(result: Result, target: Path, *, batch_frames: int, progress: bool, overwrite: bool,
                **_: Any) -> dict[str, Any]:
-        from ._atomic import atomic_folder
+        from .atomic_write import atomic_folder
         from .write_mesh import write_mesh
 
         to_mm = result.mm_per_unit

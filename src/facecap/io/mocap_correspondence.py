@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError
-from ._atomic import atomic_path
+from .atomic_write import atomic_path
 
 __all__ = ["write_mocap_correspondence", "read_mocap_correspondence"]
 

@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import FileFormatError
 from ..structures import Mesh
 from ..markers.condition_take import ConditionedTake
-from ._atomic import atomic_folder
+from .atomic_write import atomic_folder
 from .conditioned_take import write_conditioned_take
 from .read_mesh import read_mesh
 from .write_mesh import write_mesh
@@ -46,7 +46,7 @@ def write_registered_scans(
     conditioning, the registration report) and, when given, the conditioned
     take (``conditioned_take.npz``, see :mod:`facecap.io.conditioned_take`;
     ``rate`` is then required). An earlier bases folder in ``out_dir`` is
-    replaced only with ``overwrite`` (:func:`facecap.io._atomic.atomic_folder`).
+    replaced only with ``overwrite`` (:func:`facecap.io.atomic_write.atomic_folder`).
     """
     with atomic_folder(out_dir, marker_file=BASES_MARKER_FILE, overwrite=overwrite) as stage:
         write_mesh(template, stage / "template.obj")

@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import FileFormatError, InputError
-from ._atomic import atomic_write_text, recorded_path
+from .atomic_write import atomic_write_text, recorded_path
 
 __all__ = ["write_scan_plan", "read_scan_plan", "PLAN_FORMAT"]
 
@@ -32,7 +32,7 @@ def write_scan_plan(path: str | Path, plan: dict[str, Any], *, conditioning: dic
         ``register-scans`` and ``blend`` must repeat to see the same markers.
     source : str, path-like or None
         The take the plan was made from; recorded final (absolute, or relative
-        to the plan's folder when inside it: :func:`facecap.io._atomic.recorded_path`).
+        to the plan's folder when inside it: :func:`facecap.io.atomic_write.recorded_path`).
     """
     if source is not None:
         source = recorded_path(source, folder=Path(path).parent)

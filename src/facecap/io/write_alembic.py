@@ -39,7 +39,7 @@ from tqdm.auto import tqdm
 from ..errors import InputError
 from ..structures import Mesh
 from ..validate import as_positive
-from ._atomic import atomic_path
+from .atomic_write import atomic_path
 from .write_mesh import _check_uvs
 from .write_point_cache import _as_int32_count, _checked_blocks, _destination
 

@@ -46,7 +46,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..structures import Mesh
-from ._atomic import atomic_path
+from .atomic_write import atomic_path
 
 __all__ = [
     "write_gltf",

@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import FacecapWarning, InputError
 from ..structures import MarkerSequence
 from ..units import mm_per_unit, normalize_unit
-from ._atomic import atomic_path, atomic_write_text
+from .atomic_write import atomic_path, atomic_write_text
 
 __all__ = ["write_markers"]
 

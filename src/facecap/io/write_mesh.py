@@ -13,7 +13,7 @@ from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from ..units import mm_per_unit, normalize_unit
 from ..validate import as_vertices
-from ._atomic import atomic_path
+from .atomic_write import atomic_path
 
 __all__ = ["write_mesh"]
 

@@ -25,10 +25,10 @@ Everything is written into a hidden staging folder beside the destination and
 renamed onto it only when the run finishes, so an interrupted or failed run
 never leaves a folder that looks finished. A destination holding an earlier
 result is refused unless ``overwrite`` (``--overwrite``) is given
-(:func:`facecap.io._atomic.atomic_folder`); a job checks it before its long
+(:func:`facecap.io.atomic_write.atomic_folder`); a job checks it before its long
 work with :func:`check_result_destination`. Paths ``performance.json`` records
 (``source_files``) are final: relative to the folder when inside it, else
-absolute, never a staging name (:func:`facecap.io._atomic.recorded_path`).
+absolute, never a staging name (:func:`facecap.io.atomic_write.recorded_path`).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ from tqdm.auto import tqdm
 from ..errors import InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
-from ._atomic import atomic_folder, check_folder_destination, recorded_path
+from .atomic_write import atomic_folder, check_folder_destination, recorded_path
 
 __all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "import_writers", "read_performance_info",
            "file_sizes", "check_result_destination"]
@@ -454,7 +454,7 @@ def check_result_destination(out_dir: str | os.PathLike[str], *, overwrite: bool
         One line naming ``out_dir``: an earlier result without ``overwrite``, a
         file or a non-empty folder of something else (never replaced), or a
         folder that cannot be created (the cause). See
-        :func:`facecap.io._atomic.check_folder_destination`.
+        :func:`facecap.io.atomic_write.check_folder_destination`.
     """
     check_folder_destination(out_dir, marker_file=_MARKER_FILE, overwrite=overwrite)
 

@@ -24,7 +24,7 @@ UVs and units come from that mesh. Layouts (checked against Blender's readers,
 Both writers take an iterable of ``(start, block)`` pairs and write each block
 as it comes, so memory holds one block whatever the take's length. The file
 is written under a hidden temporary name and renamed when the last frame is
-in (:func:`facecap.io._atomic.atomic_path`): a bad block or a short stream
+in (:func:`facecap.io.atomic_write.atomic_path`): a bad block or a short stream
 raises :class:`~facecap.errors.InputError` and leaves nothing behind.
 ``docs/formats.md`` says what to set in Blender's Mesh Cache modifier.
 """
@@ -42,7 +42,7 @@ from tqdm.auto import tqdm
 
 from ..errors import InputError
 from ..validate import as_positive
-from ._atomic import atomic_path
+from .atomic_write import atomic_path
 
 __all__ = ["write_mdd", "write_pc2"]
 

@@ -48,7 +48,7 @@ import numpy as np
 from ..errors import InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
-from ._atomic import atomic_path
+from .atomic_write import atomic_path
 
 __all__ = ["UsdPerformanceWriter"]
 

@@ -49,7 +49,7 @@ from tqdm.auto import tqdm
 from ..errors import InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
-from ._atomic import atomic_path
+from .atomic_write import atomic_path
 from .result_rig import ResultRig
 from .weight_ranges import to_unit_range
 

@@ -18,6 +18,9 @@ In the order a user meets them:
   on a changed base (Kobbelt et al. 1999).
 - :func:`review_mesh` (``review_mesh.py``): a decimated mesh made of a subset of
   the scan's own vertices, for review files, as a :class:`ReviewMesh`.
+- :class:`SpdFactor` (``factor_spd.py``): the sparse SPD factorisation every
+  solver of a mesh's operators shares (PARDISO, or SciPy's SuperLU where MKL is
+  missing); :func:`available_backends` those that load here.
 """
 
 from __future__ import annotations
@@ -25,6 +28,7 @@ from __future__ import annotations
 from .check_mesh import MeshCheck, check_mesh
 from .connected_pieces import connected_pieces
 from .facing_outward import facing_outward
+from .factor_spd import SpdFactor, available_backends
 from .laplacian import LaplaceOperators, laplace_operators
 from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
@@ -33,6 +37,8 @@ from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
 
 __all__ = [
     "check_mesh",
+    "SpdFactor",
+    "available_backends",
     "MeshCheck",
     "connected_pieces",
     "facing_outward",

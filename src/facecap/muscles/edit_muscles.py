@@ -459,7 +459,7 @@ def edit_muscles(
     """
     from ..anatomy import load_anatomy
     from ..io.export_result import parse_export_formats
-    from ..io._atomic import resolve_recorded_path
+    from ..io.atomic_write import resolve_recorded_path
     from ..io.write_performance import check_result_destination, import_writers
     from .muscle_frame_stage import model_folder_sha256
     from .solve_muscle_take import write_muscle_result

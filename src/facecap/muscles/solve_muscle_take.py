@@ -29,7 +29,7 @@ from typing import Any, Iterable, Mapping, NamedTuple
 import numpy as np
 
 from ..errors import CorrespondenceError, FacecapWarning, InputError
-from ..io._atomic import final_path
+from ..io.atomic_write import final_path
 from ..markers.consensus_stabilize import estimate_marker_noise
 from ..markers.rigid_fit import rigid_fit
 from ..validate import as_positive

@@ -5,6 +5,9 @@ In the order a user meets them:
 - :func:`register_scans` (``register_scans.py``): every scan of a plan in one
   template topology (markers, large scale, fine scale, fitted bases), as
   :class:`RegisteredScans`.
+- :func:`fit_bases_to_markers` (``fit_bases_to_markers.py``): registered scans
+  deformed to match their frame's markers exactly (section 7), the last step of
+  :func:`register_scans`.
 - :func:`register_markers_to_scan` (``register_markers_to_scan.py``): one
   frame's markers onto a scan, as a :class:`MarkerRegistration`.
 - :func:`register_template_to_scan` (``register_template_to_scan.py``): the
@@ -34,6 +37,7 @@ with ``importlib.import_module``.
 from __future__ import annotations
 
 from .align_albedo import DEFAULT_ALBEDO_ITERATIONS, UNSEEN_ANCHOR, AlbedoAlignment, align_albedo
+from .fit_bases_to_markers import fit_bases_to_markers
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .refine_registration import Refinement, refine_registration
 from .register_markers_to_scan import MIN_FACING_OUTWARD, MarkerRegistration, register_markers_to_scan, scan_winding
@@ -60,6 +64,7 @@ from .map_markers import MAX_MOTION_FRAMES, map_markers, map_side_files, marker_
 from .check_marker_map import MAP_CHECK_MM, check_marker_map
 
 __all__ = [
+    "fit_bases_to_markers",
     "align_albedo",
     "AlbedoAlignment",
     "DEFAULT_ALBEDO_ITERATIONS",

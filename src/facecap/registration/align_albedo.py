@@ -8,7 +8,7 @@ import cv2
 import igl
 import numpy as np
 
-from ..deform.factor_spd import Backend
+from ..mesh.factor_spd import Backend
 from ..errors import InputError
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh

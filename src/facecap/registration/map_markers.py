@@ -32,7 +32,7 @@ import numpy as np
 
 from ..deform.animate_scan import DEFAULT_REST_AVERAGE_S, rest_average
 from ..errors import CorrespondenceError, FacecapWarning, MarkerError
-from ..io._atomic import atomic_write_text, check_file_destination, recorded_path
+from ..io.atomic_write import atomic_write_text, check_file_destination, recorded_path
 from ..io.read_correspondence import Correspondence
 from ..markers.condition_take import condition_take
 from ..markers.rigid_fit import rigid_fit

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ..deform.factor_spd import Backend, SpdFactor
+from ..mesh.factor_spd import Backend, SpdFactor
 from ..errors import InputError
 from ..mesh.laplacian import laplace_operators
 from ..mesh.mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
@@ -199,7 +199,7 @@ def refine_registration(
         Vertices farther than this from their scan before refinement (over
         holes, beyond a cropped border) are not moved by the flow nor snapped.
     backend : {'auto', 'pardiso', 'scipy'}
-        Sparse solver of eq. 11 (:class:`~facecap.deform.factor_spd.SpdFactor`).
+        Sparse solver of eq. 11 (:class:`~facecap.mesh.factor_spd.SpdFactor`).
 
     Returns
     -------

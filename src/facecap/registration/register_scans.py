@@ -11,7 +11,7 @@ import igl
 import numpy as np
 from tqdm.auto import tqdm
 
-from ..blendshapes.fit_bases_to_markers import fit_bases_to_markers
+from .fit_bases_to_markers import fit_bases_to_markers
 from ..deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM
 from ..errors import FacecapWarning, InputError
 from ..markers.rigid_fit import rigid_fit

@@ -9,7 +9,7 @@ import igl
 import numpy as np
 import scipy.sparse as sp
 
-from ..deform.factor_spd import Backend, SpdFactor
+from ..mesh.factor_spd import Backend, SpdFactor
 from ..errors import InputError
 from ..mesh.laplacian import laplace_operators
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices

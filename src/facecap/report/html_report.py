@@ -43,7 +43,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError
-from ..io._atomic import atomic_path, final_path
+from ..io.atomic_write import atomic_path, final_path
 from ..io.write_performance import file_sizes
 from .explain_warning import explain_warning
 from .plot_series import plot_series

@@ -11,7 +11,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..errors import InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 from ..validate import as_faces, as_points, as_vertices
 from .render_mesh import _as_size, draw_mesh
 

@@ -11,7 +11,7 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from ..errors import InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 from .render_mesh import _as_size
 
 __all__ = ["plot_scan_selection"]

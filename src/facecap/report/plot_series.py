@@ -12,7 +12,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
 from ..errors import InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 
 __all__ = ["plot_series"]
 

@@ -22,7 +22,7 @@ from matplotlib.colors import Normalize
 from matplotlib.figure import Figure
 
 from ..errors import InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 from ..validate import as_faces, as_vertices
 
 __all__ = ["render_mesh", "render_side_by_side", "MeshPanel", "draw_mesh"]

@@ -30,7 +30,7 @@ from matplotlib import colormaps
 
 from .. import __version__
 from ..errors import FileFormatError, InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 
 __all__ = ["write_review_page", "serve", "ReviewServer", "EMBED_LIMIT_BYTES"]
 

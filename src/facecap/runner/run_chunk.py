@@ -2,7 +2,7 @@
 
 The chunk file is the done-marker. It is written under a hidden temporary name,
 flushed to disk and renamed onto its final name in one step
-(:func:`~facecap.io._atomic.atomic_path`), so a file under the final name is
+(:func:`~facecap.io.atomic_write.atomic_path`), so a file under the final name is
 always complete: a worker killed while writing leaves only a hidden
 ``.chunk-….partial-…`` file, which a later run ignores and deletes. There is no
 separate marker that could disagree with the data (a worker killed between
@@ -32,7 +32,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..io._atomic import atomic_path
+from ..io.atomic_write import atomic_path
 from .frame_stage import FrameStage, StageState
 from .plan_chunks import FrameChunk
 

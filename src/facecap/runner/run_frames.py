@@ -33,7 +33,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ..errors import FacecapWarning, FileFormatError, InputError, SolverError
-from ..io._atomic import atomic_path, atomic_write_text
+from ..io.atomic_write import atomic_path, atomic_write_text
 from .connect_scheduler import connect_scheduler
 from .frame_stage import FrameStage, stage_identity
 from .plan_chunks import FrameChunk, _positive_int, plan_chunks

@@ -10,7 +10,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
-from ..io._atomic import atomic_path, atomic_write_text
+from ..io.atomic_write import atomic_path, atomic_write_text
 from ..io.write_markers import write_markers
 from ..io.write_mesh import write_mesh
 from ..typing import FloatArray

@@ -9,7 +9,7 @@ from typing import NamedTuple, Sequence
 
 import numpy as np
 
-from ..io._atomic import atomic_path, atomic_write_text
+from ..io.atomic_write import atomic_path, atomic_write_text
 from ..io.write_markers import write_markers
 from ..io.write_mesh import write_mesh
 from ..units import mm_per_unit

@@ -525,7 +525,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     opts = dict(options or {})
     opts["depth_scale"] = dict(depth_scale) if isinstance(depth_scale, Mapping) else float(depth_scale)
     if opts.get("backend", "auto") == "auto":
-        from ..deform.factor_spd import available_backends
+        from ..mesh.factor_spd import available_backends
 
         # one factorisation for every chunk, recorded with the run: a resume or a re-run task on another
         # worker then solves the same way

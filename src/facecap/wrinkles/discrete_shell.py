@@ -18,7 +18,7 @@ positive semi-definite by construction: no definiteness fix is needed) with a
 Levenberg-Marquardt damping that grows on a rejected step and shrinks on an
 accepted one, as the issue's measured note warned undamped Gauss-Newton
 diverges from a poor start. The linear solves use the project's sparse
-factorisation (:class:`~facecap.deform.factor_spd.SpdFactor`).
+factorisation (:class:`~facecap.mesh.factor_spd.SpdFactor`).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from ..deform.factor_spd import SpdFactor
+from ..mesh.factor_spd import SpdFactor
 from ..errors import InputError
 from ..typing import FloatArray, IntArray
 from ..validate import as_faces, as_vertices

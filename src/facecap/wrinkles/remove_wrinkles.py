@@ -11,7 +11,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
-from ..deform.factor_spd import Backend, SpdFactor
+from ..mesh.factor_spd import Backend, SpdFactor
 from ..errors import FacecapWarning, InputError
 from ..mesh.laplacian import laplace_operators
 from ..mesh.local_frame_details import LocalFrameDetails
@@ -205,7 +205,7 @@ def remove_wrinkles_arrays(
         forehead, the same wrinkle residual with 0.99 instead of 0.76
         correlation of the kept detail with the truth (see the docs).
     backend : {'auto', 'pardiso', 'scipy'}, default 'auto'
-        Sparse factorisation, see :class:`~facecap.deform.factor_spd.SpdFactor`.
+        Sparse factorisation, see :class:`~facecap.mesh.factor_spd.SpdFactor`.
 
     Returns
     -------
