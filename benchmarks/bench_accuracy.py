@@ -18,11 +18,11 @@ Protocol
    use ``--variant-seeds`` seeds). Each case is written to disk as a user holds
    it (:func:`~facecap.synth.write_synthetic_case.write_synthetic_case`: scan
    OBJ, C3D take, JSON map, truth npz), read back with the package's readers,
-   and run through :func:`facecap.deform.animate_scan.animate_scan`
+   and run through :func:`facecap.pipelines.animate_scan.animate_scan`
    (``stabilize=True``, defaults otherwise); the output folder is compared with
    the truth by :func:`facecap.report.evaluate_result.evaluate_result`.
    *Warp alone*: the same conditioned markers
-   (:func:`~facecap.deform.animate_scan.prepare_markers`) mapped to face space by
+   (:func:`~facecap.markers.prepare_take.prepare_markers`) mapped to face space by
    the same :class:`~facecap.deform.triharmonic_warp.TriharmonicWarp`; their
    displacements drive :func:`~facecap.deform.rbf_deform.rbf_deformation_basis`
    centred at the markers' scan points. (The shell output at the marker
@@ -72,7 +72,8 @@ from typing import Any
 
 import numpy as np
 
-from facecap.deform.animate_scan import animate_scan, prepare_markers
+from facecap.markers.prepare_take import prepare_markers
+from facecap.pipelines.animate_scan import animate_scan
 from facecap.deform.rbf_deform import rbf_deformation_basis
 from facecap.deform.thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver
 from facecap.deform.triharmonic_warp import TriharmonicWarp

@@ -59,7 +59,8 @@ def _case(case: str, frames: int, work: Path) -> tuple[Any, Any, Any]:
 
 def _setup_alone(scan: Any, take: Any, corr: Any) -> float:
     """Seconds to build what ``animate``'s ``shell_setup_s`` covers, nothing else running."""
-    from facecap.deform import MarkerOffsets, ThinShellSolver, prepare_markers
+    from facecap.deform import MarkerOffsets, ThinShellSolver
+    from facecap.markers import prepare_markers
 
     vertices = prepare_markers(take, scan, corr).constrained_vertices
     t = time.perf_counter()
@@ -69,7 +70,7 @@ def _setup_alone(scan: Any, take: Any, corr: Any) -> float:
 
 
 def _animate(scan: Any, take: Any, corr: Any, out: Path, **kwargs: Any) -> tuple[float, dict[str, Any]]:
-    from facecap.deform import animate_scan
+    from facecap.pipelines import animate_scan
 
     t = time.perf_counter()
     with warnings.catch_warnings():

@@ -35,7 +35,7 @@ their ``may_be_off_mm``, the head-band markers placed (must be none), the search
 distinct pose, and the job's wall time (a shared machine: the other processes' load is printed beside it).
 
 The real take: :func:`leave_one_out` of ``bench_accuracy.py`` on the take conditioned by
-:func:`~facecap.deform.animate_scan.prepare_markers` (``stabilize=True``) with each map; both maps'
+:func:`~facecap.markers.prepare_take.prepare_markers` (``stabilize=True``) with each map; both maps'
 errors are also given relative to the markers' motion in face space, since a map whose layout is
 smaller than the markers' shrinks every displacement, and its errors with them.
 """
@@ -59,7 +59,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _load import Window  # noqa: E402
 from bench_accuracy import leave_one_out  # noqa: E402
 
-from facecap.deform.animate_scan import prepare_markers  # noqa: E402
+from facecap.markers.prepare_take import prepare_markers  # noqa: E402
 from facecap.io.read_correspondence import read_correspondence  # noqa: E402
 from facecap.io.read_markers import read_markers  # noqa: E402
 from facecap.registration import map_markers  # noqa: E402

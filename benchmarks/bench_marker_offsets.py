@@ -3,7 +3,7 @@
 The *oracle* is the same :class:`~facecap.deform.thin_shell.ThinShellSolver` driven by the exact
 skin displacements under the markers (``truth[t, marker_vertices] - scan[marker_vertices]``), no
 conditioning: the best the shell can do with these markers. ``animate`` is
-:func:`~facecap.deform.animate_scan.animate_scan` with ``stabilize=True`` (the head band when the
+:func:`~facecap.pipelines.animate_scan.animate_scan` with ``stabilize=True`` (the head band when the
 take has one, consensus otherwise), defaults otherwise, on the take as a user holds it (scan,
 marker take, JSON map), compared with the truth by
 :func:`~facecap.report.evaluate_performance.evaluate_performance` (mean over all vertices and
@@ -29,7 +29,7 @@ Rows, per case:
 - ``--what-if``: two rows for levers outside ``animate``: ``new`` with the bilateral filter's
   temporal sigma at 0.06 s instead of 0.02 s (``filter 0.06``), and the same with the true head
   motion removed (``filter 0.06, true head``). They run animate's steps in memory
-  (:func:`~facecap.deform.animate_scan.prepare_markers` with ``smooth=False``, then
+  (:func:`~facecap.markers.prepare_take.prepare_markers` with ``smooth=False``, then
   :func:`~facecap.markers.bilateral_filter.bilateral_filter`, the averaged rest, the lifted
   warp, :class:`~facecap.deform.marker_offsets.MarkerOffsets`, the shell); with the default
   filter these steps give ``new`` to 0.001 mm.
@@ -63,7 +63,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from cases import HELD_OUT_CASES, TUNED_CASES, Case, make_case  # noqa: E402
 
-from facecap.deform.animate_scan import DEFAULT_REST_AVERAGE_S, animate_scan, prepare_markers  # noqa: E402
+from facecap.markers.prepare_take import DEFAULT_REST_AVERAGE_S, prepare_markers  # noqa: E402
+from facecap.pipelines.animate_scan import animate_scan  # noqa: E402
 from facecap.deform.triharmonic_warp import TriharmonicWarp  # noqa: E402
 from facecap.markers.bilateral_filter import bilateral_filter  # noqa: E402
 from facecap.deform.marker_offsets import MarkerOffsets  # noqa: E402
@@ -155,7 +156,7 @@ def animate_error(synthetic: SyntheticCase, folder: Path, *, markers=None, stabi
 
 def what_if_error(synthetic: SyntheticCase, folder: Path, *, temporal_sigma_s: float, true_head: bool) -> float:
     """``new`` with another temporal sigma of the bilateral filter, animate's steps run in memory (mm)."""
-    animate_module = importlib.import_module("facecap.deform.animate_scan")  # its rest average
+    animate_module = importlib.import_module("facecap.pipelines.animate_scan")  # its rest average
 
     map_path = folder / "map.json"
     map_path.write_text(json.dumps(synthetic.correspondence))

@@ -22,7 +22,7 @@ its temporal sigma chosen per take). The conditioned markers are then the input 
 frame for frame (``smooth=False``, ``stabilize=False`` from there on), so neither sees anything
 the other does not:
 
-- ``animate``: :func:`facecap.deform.animate_scan` (the warp, the marker offsets, the thin shell);
+- ``animate``: :func:`facecap.pipelines.animate_scan` (the warp, the marker offsets, the thin shell);
 - muscles: :func:`facecap.muscles.solve_muscle_take` with ``retarget='warp'``, so its markers reach
   the face by the same triharmonic warp from the same rest markers (``rest_average``) onto the same
   lifted map points: the difference is the face model alone. One runner chunk (only the first frame
@@ -79,7 +79,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from cases import HELD_OUT_CASES, TUNED_CASES, Case, make_case  # noqa: E402
 
 from facecap.anatomy import build_anatomy, load_anatomy  # noqa: E402
-from facecap.deform.animate_scan import DEFAULT_REST_AVERAGE_S, animate_scan, prepare_markers, rest_average  # noqa: E402
+from facecap.markers.prepare_take import DEFAULT_REST_AVERAGE_S, prepare_markers, rest_average  # noqa: E402
+from facecap.pipelines.animate_scan import animate_scan  # noqa: E402
 from facecap.deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM, marker_ring  # noqa: E402
 from facecap.deform.thin_shell import ThinShellSolver  # noqa: E402
 from facecap.deform.triharmonic_warp import TriharmonicWarp  # noqa: E402

@@ -68,7 +68,7 @@ RUNS = {
 @contextlib.contextmanager
 def rest_average_before_issue_28() -> Iterator[None]:
     """The rest average of the release before issue 28: the window's frames averaged as captured."""
-    module = importlib.import_module("facecap.deform.animate_scan")
+    module = importlib.import_module("facecap.pipelines.animate_scan")
     current = module.rest_average
 
     def before(P: np.ndarray, rest_frame: int, sigma_frames: float, **_: Any) -> np.ndarray:

@@ -48,7 +48,7 @@ def _compare(folder: Path) -> dict[str, Any]:
 def main() -> None:
     from facecap.blendshapes import write_blended_performance
     from facecap.demo import run_demo
-    from facecap.deform import animate_scan
+    from facecap.pipelines import animate_scan
 
     work = Path(tempfile.mkdtemp(prefix="rig_exactness_"))
     out: dict[str, Any] = {}

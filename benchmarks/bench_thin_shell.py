@@ -23,7 +23,7 @@ speed
     code: two buffers, one writer thread, ``PerformanceWriter``) writing a real
     ``vertices.npy``. Outputs are deleted after each repeat.
 stream
-    The real :func:`facecap.deform.animate_scan.animate_scan` on a synthetic
+    The real :func:`facecap.pipelines.animate_scan.animate_scan` on a synthetic
     take (markers at their vertices plus the smooth motion, vertex-index
     correspondence), then ``ru_maxrss`` of the process: the peak memory of a
     whole take. ``--sink null`` opens ``vertices.npy`` on ``/dev/null`` (every
@@ -91,7 +91,7 @@ class MemoryProbe:
         import importlib
         import threading
 
-        module = importlib.import_module("facecap.deform.animate_scan")  # the module, not the function
+        module = importlib.import_module("facecap.pipelines.animate_scan")  # the module, not the function
 
         probe, base = self, module.ThinShellSolver
 
@@ -285,7 +285,7 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
 def run_stream(args: argparse.Namespace) -> dict[str, Any]:
     import warnings
 
-    from facecap.deform.animate_scan import animate_scan
+    from facecap.pipelines.animate_scan import animate_scan
     from facecap.io.read_correspondence import Correspondence
     from facecap.structures import MarkerSequence
 

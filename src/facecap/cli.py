@@ -79,7 +79,7 @@ def _add_animate(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_animate(args: argparse.Namespace) -> int:
-    from .deform.animate_scan import animate_scan
+    from .pipelines.animate_scan import animate_scan
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
     from .io.read_mesh import read_mesh

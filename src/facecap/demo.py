@@ -54,7 +54,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     -------
     list of str
     """
-    from .deform.animate_scan import animate_scan
+    from .pipelines.animate_scan import animate_scan
     from .deform.rbf_deform import rbf_deformation_basis
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
@@ -277,7 +277,7 @@ def _animate_real_take(stage: Path, sample, progress: bool, render_mesh, plot_se
     """Animate the bundled ICT face from the real AnimFace take and check it without ground truth."""
     import igl
 
-    from .deform.animate_scan import animate_scan
+    from .pipelines.animate_scan import animate_scan
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
     from .synth.ict_sample import bundled_path
@@ -495,7 +495,7 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     import matplotlib.pyplot as plt
 
     from .cameras import RayCaster, read_camera_file, read_image
-    from .deform.animate_scan import animate_scan
+    from .pipelines.animate_scan import animate_scan
     from .io.atomic_write import atomic_path
     from .io.mocap_correspondence import read_mocap_correspondence
     from .io.read_correspondence import read_correspondence

@@ -37,7 +37,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from analytic_case import CaptureCase
-from facecap.deform import animate_scan
+from facecap.pipelines import animate_scan
 from facecap.io import (UsdPerformanceWriter, export_result, read_correspondence, read_markers, read_mesh,
                         read_result, write_mesh)
 from facecap.io.result_rig import ResultRig

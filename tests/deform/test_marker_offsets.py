@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from facecap.deform.animate_scan import animate_scan
+from facecap.pipelines.animate_scan import animate_scan
 from facecap.deform.marker_offsets import MarkerOffsets, marker_ring
 from facecap.deform.thin_shell import ThinShellSolver
 from facecap.errors import FacecapWarning, InputError

@@ -8,7 +8,7 @@ import warnings
 import numpy as np
 import pytest
 
-from facecap.deform import animate_scan
+from facecap.pipelines import animate_scan
 from facecap.errors import InputError
 from facecap.io import ResultRig, read_correspondence, read_markers, read_mesh, read_result, read_rig, write_rig
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from pxr import Usd, UsdGeom, UsdSkel, UsdValidation
 
-from facecap.deform import animate_scan
+from facecap.pipelines import animate_scan
 from facecap.errors import InputError
 from facecap.io import (ResultRig, export_result, read_correspondence, read_markers, read_mesh, read_result,
                         write_usd_blendshapes)

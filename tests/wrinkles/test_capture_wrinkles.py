@@ -19,7 +19,7 @@ import pytest
 
 from facecap.cameras import read_camera_file
 from facecap.cli import main
-from facecap.deform.animate_scan import animate_scan
+from facecap.pipelines.animate_scan import animate_scan
 from facecap.errors import FacecapWarning, InputError
 from facecap.io import read_correspondence, read_markers, read_mesh
 from facecap.io.read_result import read_result

@@ -1,10 +1,8 @@
 """Large-scale deformation of a scan by mocap markers (Bickel et al. 2007, section 4).
 
-In the order a user meets them:
+The solvers; the job that strings them together for ``facecap animate`` is
+:func:`facecap.pipelines.animate_scan`. In the order a user meets them:
 
-- :func:`animate_scan` (``animate_scan.py``): the whole job, from a scan, a
-  take and a map to an output folder; :func:`prepare_markers` is its first
-  stage (match, gap-fill, stabilise and filter the take).
 - :func:`choose_rest_pose` (``rest_pose.py``): where the warp puts the rest
   markers (the scan's expression, an expression the actor holds at rest, or a
   neutral reference: :func:`neutral_from_frames`, :func:`neutral_from_take`),
@@ -26,14 +24,12 @@ In the order a user meets them:
   (``principal_targets.py``): a take as a few principal morph targets and
   their weights (for glTF review files), as :class:`PrincipalTargets`.
 
-The functions share their modules' names, so ``facecap.deform.animate_scan``
-is the function; reach a module itself with
-``importlib.import_module("facecap.deform.animate_scan")``.
+Some functions share their modules' names, so ``facecap.deform.principal_targets``
+is the function; reach a module itself with ``importlib.import_module``.
 """
 
 from __future__ import annotations
 
-from .animate_scan import AnimationResult, PreparedMarkers, animate_scan, prepare_markers
 from .basis_product import BasisProduct, Precision
 from .marker_offsets import DEFAULT_MARKER_OFFSET_MM, DEFAULT_OFFSET_ITERATIONS, MarkerOffsets, MarkerRing, marker_ring
 from .principal_targets import PrincipalTargets, principal_targets, principal_targets_from_rig
@@ -43,10 +39,6 @@ from .thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, PieceReport, ThinShellSolver
 from .triharmonic_warp import TriharmonicWarp, check_warp_sources
 
 __all__ = [
-    "animate_scan",
-    "AnimationResult",
-    "prepare_markers",
-    "PreparedMarkers",
     "choose_rest_pose",
     "RestPose",
     "REST_POSES",

@@ -15,6 +15,9 @@ with the face; :func:`savitzky_golay` (``condition_take.py``) smooths the head p
 :func:`measure_resting_expression` (``resting_expression.py``) measures a take's rest frame
 against the scan (a :class:`RestingExpression`: the robust rigid fit, :func:`robust_rigid_fit`, and how much
 of the mismatch is an expression the actor holds at rest, by how much of it each marker's neighbours share).
+:func:`prepare_markers` (``prepare_take.py``) makes a take ready for any solver: matched to the map
+(:func:`check_take_against_map`), conditioned, as :class:`PreparedMarkers`; :func:`rest_average` gives the
+warp its rest markers and :func:`head_pose_in_scan` the head motion in the scan's coordinates.
 """
 
 from __future__ import annotations
@@ -50,10 +53,19 @@ from .resting_expression import (
     measure_resting_expression,
     robust_rigid_fit,
 )
+from .prepare_take import (DEFAULT_REST_AVERAGE_S, MIN_DRIVING_MARKERS, PreparedMarkers, check_take_against_map,
+                           head_pose_in_scan, prepare_markers, rest_average)
 from .rigid_fit import RigidTransform, rigid_fit
 from .stabilize_head import Stabilization, stabilize_head
 
 __all__ = [
+    "prepare_markers",
+    "PreparedMarkers",
+    "check_take_against_map",
+    "rest_average",
+    "head_pose_in_scan",
+    "DEFAULT_REST_AVERAGE_S",
+    "MIN_DRIVING_MARKERS",
     "fill_gaps",
     "FilledMarkers",
     "stabilize_head",

@@ -200,7 +200,7 @@ def solve_muscle_take(
     head motion is in ``head_motion.npy``, as for a stabilised ``animate`` result.
     """
     from ..anatomy import load_anatomy
-    from ..deform.animate_scan import DEFAULT_REST_AVERAGE_S, head_pose_in_scan, prepare_markers, rest_average
+    from ..markers.prepare_take import DEFAULT_REST_AVERAGE_S, head_pose_in_scan, prepare_markers, rest_average
     from ..deform.marker_offsets import marker_ring
     from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
     from ..io.export_result import parse_export_formats

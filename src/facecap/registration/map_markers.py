@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from ..deform.animate_scan import DEFAULT_REST_AVERAGE_S, rest_average
+from ..markers.prepare_take import DEFAULT_REST_AVERAGE_S, rest_average
 from ..errors import CorrespondenceError, FacecapWarning, MarkerError
 from ..io.atomic_write import atomic_write_text, check_file_destination, recorded_path
 from ..io.read_correspondence import Correspondence
@@ -69,7 +69,7 @@ def rest_markers_of(take: MarkerSequence, rest_frame: int) -> tuple[FloatArray, 
     -------
     rest : (M, 3) float64 array, mm
         The rest frame averaged with its neighbours (each moved rigidly onto it:
-        :func:`~facecap.deform.animate_scan.rest_average`, the half-width
+        :func:`~facecap.markers.prepare_take.rest_average`, the half-width
         ``animate`` uses); a marker missing there is taken from the gap-filled
         take, NaN if it cannot be filled.
     motion : (T', M, 3) float64 array, mm

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from facecap.deform import ThinShellSolver
-from facecap.deform.animate_scan import animate_scan
+from facecap.pipelines.animate_scan import animate_scan
 from facecap.errors import InputError, MarkerError
 from facecap.io import read_correspondence, read_markers, read_mesh
 from facecap.structures import MarkerSequence
@@ -216,7 +216,7 @@ def test_a_neutral_rest_frame_is_mapped_onto_the_scan_and_a_neutral_range_is_obe
 def test_the_rest_average_takes_out_head_motion_and_stops_where_the_face_moves():
     from scipy.spatial.transform import Rotation
 
-    from facecap.deform.animate_scan import rest_average
+    from facecap.markers.prepare_take import rest_average
 
     rng = np.random.default_rng(2)
     X = rng.normal(size=(40, 3)) * 40.0

@@ -1,0 +1,23 @@
+"""The jobs each command runs: thin sequences of solver calls, from the files a user gives to the folder written.
+
+Directly under :mod:`facecap.cli` (docs/architecture.md): a job reads and checks its inputs,
+calls the solver packages (arrays in, arrays out), and writes the result through
+:mod:`facecap.io`; no solver package imports a job.
+
+- :func:`animate_scan` (``animate_scan.py``): ``facecap animate``, a scan animated by a take
+  (Bickel et al. 2007, section 4: the warp, the marker offsets, the thin shell), streamed to
+  a result folder, as an :class:`AnimationResult`.
+
+The other commands' jobs still live in their solver packages (issue 29): ``blend`` and the scan
+workflow in :mod:`facecap.blendshapes`, ``solve-muscles`` and ``edit-muscles`` in
+:mod:`facecap.muscles`, ``wrinkles`` in :mod:`facecap.wrinkles`.
+
+The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
+function; reach a module itself with ``importlib.import_module``.
+"""
+
+from __future__ import annotations
+
+from .animate_scan import OFFSET_WARNING_MM, AnimationResult, animate_scan
+
+__all__ = ["animate_scan", "AnimationResult", "OFFSET_WARNING_MM"]
