@@ -72,7 +72,7 @@ def _metric(D: np.ndarray, true: np.ndarray, mask: np.ndarray) -> tuple[float, f
 def run_case(work: Path, name: str, render_edge_mm: float | None) -> dict:
     from facecap.cameras import open_footage, read_camera_file, read_image
     from facecap.wrinkles import WrinkleFrameStage, track_wrinkles
-    from facecap.wrinkles.capture_wrinkles import first_frame_anchors
+    from facecap.wrinkles.wrinkle_frame_stage import first_frame_anchors
 
     folder, animate = _case(work, name, render_edge_mm)
     setup = read_camera_file(folder / "cameras.json")

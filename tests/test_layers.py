@@ -27,10 +27,9 @@ ARCHITECTURE = ROOT / "docs" / "architecture.md"
 
 KNOWN_DEBT = {
     # the jobs still live in solver packages (issue 29 item 1: facecap/pipelines)
-    "arrow muscles -> report", "arrow muscles -> runner", "arrow wrinkles -> runner",
+    "arrow muscles -> report", "arrow muscles -> runner",
     "arrow blendshapes -> report", "arrow registration -> report",
     "private facecap.demo <- facecap.muscles.solve_muscle_take",
-    "private facecap.wrinkles.capture_wrinkles <- facecap.wrinkles.synthesize_wrinkles",
     # io's writer calls the exports and the report page; its exports run a PCA and decimate a mesh;
     # the conditioned take's file holds a markers record (issue 29 item 2: io as file formats only)
     "arrow io -> report", "arrow io -> deform", "arrow io -> markers", "arrow io -> mesh",
@@ -62,6 +61,7 @@ KNOWN_DEBT = {
     "private facecap.synth.wrinkle_paint <- facecap.synth.wrinkles",
     "private facecap.synth.wrinkles <- facecap.synth.expression_curves",
     "private facecap.wrinkles.synthesize_wrinkles <- facecap.wrinkles.surface_wrinkles",
+    "private facecap.wrinkles.wrinkle_frame_stage <- facecap.wrinkles.synthesize_wrinkles",
 }
 
 

@@ -716,7 +716,7 @@ def _camera_setup(paths: Sequence[str], videos: Sequence[str], unit: str) -> tup
 
 def _cmd_wrinkles(args: argparse.Namespace) -> int:
     from .io.export_result import parse_export_formats
-    from .wrinkles import capture_wrinkles
+    from .pipelines import capture_wrinkles
 
     if len(args.masks) != len(args.video):
         raise FacecapError(f"--masks: {len(args.masks)} masks for {len(args.video)} footage (one per camera)")

@@ -506,7 +506,8 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     from .synth.ict_sample import load_ict_sample
     from .synth.wrinkles import every_wrinkle_at_once
     from .synth.write_footage_case import write_footage_case
-    from .wrinkles import capture_wrinkles, fit_cross_sections, large_scale_in_mocap, wedge_intensity
+    from .pipelines import capture_wrinkles
+    from .wrinkles import fit_cross_sections, large_scale_in_mocap, wedge_intensity
     from .wrinkles.fit_cross_sections import DEFAULT_ROUNDING
 
     t0 = time.perf_counter()

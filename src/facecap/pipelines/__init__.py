@@ -7,10 +7,12 @@ calls the solver packages (arrays in, arrays out), and writes the result through
 - :func:`animate_scan` (``animate_scan.py``): ``facecap animate``, a scan animated by a take
   (Bickel et al. 2007, section 4: the warp, the marker offsets, the thin shell), streamed to
   a result folder, as an :class:`AnimationResult`.
+- :func:`capture_wrinkles` (``capture_wrinkles.py``): ``facecap wrinkles``, the wrinkle layer
+  (section 5) over a whole take on the frame runner, as a :class:`WrinkleCapture`.
 
 The other commands' jobs still live in their solver packages (issue 29): ``blend`` and the scan
 workflow in :mod:`facecap.blendshapes`, ``solve-muscles`` and ``edit-muscles`` in
-:mod:`facecap.muscles`, ``wrinkles`` in :mod:`facecap.wrinkles`.
+:mod:`facecap.muscles`.
 
 The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
 function; reach a module itself with ``importlib.import_module``.
@@ -19,5 +21,6 @@ function; reach a module itself with ``importlib.import_module``.
 from __future__ import annotations
 
 from .animate_scan import OFFSET_WARNING_MM, AnimationResult, animate_scan
+from .capture_wrinkles import WrinkleCapture, capture_wrinkles
 
-__all__ = ["animate_scan", "AnimationResult", "OFFSET_WARNING_MM"]
+__all__ = ["animate_scan", "AnimationResult", "OFFSET_WARNING_MM", "capture_wrinkles", "WrinkleCapture"]

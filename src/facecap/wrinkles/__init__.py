@@ -21,9 +21,10 @@
   :func:`anchor_curves`, :func:`identity_parts`, :func:`names_wrinkle` (``surface_wrinkles.py``): valley splines cast onto the animated face, the cameras merged (5.3).
 - :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`
   (``synthesize_wrinkles.py``): valleys imposed and bulges by the shell, region by region (5.3).
-- :func:`capture_wrinkles`, :class:`WrinkleCapture`, :class:`WrinkleFrameStage`,
-  :func:`large_scale_in_mocap`, :func:`first_frame_anchors`, :func:`check_cameras_see_the_face`,
-  :func:`check_paint_on_face` (``capture_wrinkles.py``): the whole layer over a take, on the frame runner (``facecap wrinkles``).
+- :class:`WrinkleFrameStage`, :func:`large_scale_in_mocap`, :func:`first_frame_anchors`,
+  :func:`check_cameras_see_the_face`, :func:`check_paint_on_face` (``wrinkle_frame_stage.py``): one video
+  frame of the layer, and the checks before a run; the whole take (``facecap wrinkles``) is
+  :func:`facecap.pipelines.capture_wrinkles`, on the frame runner.
 - :class:`WrinkleEdits`, :func:`read_wrinkle_edits`, :class:`DepthEdit`, :class:`DrawnWrinkle`,
   :func:`svg_path_points` (``wrinkle_edits.py``): depth edits per wrinkle and frame range, wrinkles drawn
   by hand (6.2).
@@ -72,10 +73,8 @@ from .surface_wrinkles import (
     wrinkles_on_surface,
 )
 from .synthesize_wrinkles import WrinkleSynthesis, smoothed_normals, synthesize_wrinkles
-from .capture_wrinkles import (
-    WrinkleCapture,
+from .wrinkle_frame_stage import (
     WrinkleFrameStage,
-    capture_wrinkles,
     check_cameras_see_the_face,
     check_paint_on_face,
     first_frame_anchors,
@@ -120,8 +119,6 @@ __all__ = [
     "synthesize_wrinkles",
     "WrinkleSynthesis",
     "smoothed_normals",
-    "capture_wrinkles",
-    "WrinkleCapture",
     "WrinkleFrameStage",
     "large_scale_in_mocap",
     "remove_wrinkles",

@@ -26,7 +26,7 @@ from facecap.io.read_result import read_result
 from facecap.synth.ict_sample import load_ict_sample
 from facecap.synth.wrinkles import every_wrinkle_at_once
 from facecap.synth.write_footage_case import write_footage_case
-from facecap.wrinkles import capture_wrinkles
+from facecap.pipelines import capture_wrinkles
 
 
 @pytest.fixture(scope="module")
