@@ -53,8 +53,6 @@ KNOWN_DEBT = {
     "private facecap.report.plot_activations <- facecap.report.render_mesh",
     "private facecap.report.plot_marker_map <- facecap.report.render_mesh",
     "private facecap.report.plot_scan_selection <- facecap.report.render_mesh",
-    "private facecap.runner.connect_scheduler <- facecap.runner.plan_chunks",
-    "private facecap.runner.run_frames <- facecap.runner.plan_chunks",
     "private facecap.synth.generate_performance <- facecap.synth.expression_curves",
     "private facecap.synth.real_motion_curves <- facecap.synth.expression_curves",
     "private facecap.synth.speech_curves <- facecap.synth.expression_curves",

@@ -3,7 +3,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError
-from facecap.validate import as_rigid_transform
+from facecap.validate import as_count, as_rigid_transform
 
 
 def _rigid(angle_deg=30.0, t=(1.0, 2.0, 3.0)):
@@ -50,3 +50,15 @@ def test_as_positive_range():
                          ((-1.0, 2.0), "positive")):
         with pytest.raises(InputError, match=message):
             as_positive_range(bad, name="r")
+
+
+@pytest.mark.parametrize("good, minimum", [(3, 1), (np.int64(7), 1), (0, 0), (np.uint8(1), 1)])
+def test_as_count_takes_any_integer_type(good, minimum):
+    count = as_count(good, name="n", minimum=minimum)
+    assert count == int(good) and type(count) is int
+
+
+@pytest.mark.parametrize("bad, minimum", [(0, 1), (-1, 0), (2.0, 1), (True, 0), ("3", 1), (None, 1), (np.float64(4), 1)])
+def test_as_count_names_what_is_not_a_count(bad, minimum):
+    with pytest.raises(InputError, match=rf"^n_frames: expected an integer >= {minimum}, got "):
+        as_count(bad, name="n_frames", minimum=minimum)

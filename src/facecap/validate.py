@@ -6,6 +6,7 @@ Each names the argument, what was expected and what arrived, and raises an
 
 from __future__ import annotations
 
+import operator
 from typing import Any
 
 import numpy as np
@@ -14,7 +15,7 @@ from .errors import InputError, MarkerError, MeshError
 from .typing import FloatArray, IntArray
 
 __all__ = ["as_vertices", "as_faces", "as_marker_positions", "as_points", "as_positive", "as_positive_range",
-           "as_rigid_transform"]
+           "as_rigid_transform", "as_count"]
 
 
 def as_points(X: Any, *, name: str, dim: int = 3, allow_nan: bool = False) -> FloatArray:
@@ -90,6 +91,18 @@ def as_positive(x: Any, *, name: str, allow_zero: bool = False) -> float:
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         raise InputError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {x!r}")
     return v
+
+
+def as_count(x: Any, *, name: str, minimum: int = 1) -> int:
+    """Return ``x`` as an int >= ``minimum``, or raise: any integer type (numpy's too), never a bool or a float."""
+    if not isinstance(x, bool):
+        try:
+            number = operator.index(x)
+        except TypeError:
+            number = None
+        if number is not None and number >= minimum:
+            return int(number)
+    raise InputError(f"{name}: expected an integer >= {minimum}, got {x!r}")
 
 
 def as_positive_range(x: Any, *, name: str) -> tuple[float, float]:

@@ -61,7 +61,7 @@ def test_the_local_cluster_has_the_workers_asked_for() -> None:
 
 @pytest.mark.parametrize(("arguments", "message"), [
     ({"scheduler": 3}, "scheduler must be None"),
-    ({"scheduler": None, "n_workers": 0}, "n_workers must be a positive integer"),
+    ({"scheduler": None, "n_workers": 0}, "n_workers: expected an integer >= 1"),
     ({"scheduler": "tcp://127.0.0.1:1", "connect_timeout_s": 0}, "connect_timeout_s must be positive"),
 ])
 def test_bad_arguments(arguments: dict, message: str) -> None:

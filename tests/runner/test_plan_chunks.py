@@ -39,5 +39,6 @@ def test_segments_chain_their_chunks() -> None:
 )
 def test_counts_must_be_positive_integers(arguments: dict) -> None:
     options = {"n_frames": 10, **arguments}
-    with pytest.raises(InputError, match="must be a positive integer"):
+    name = next(iter(arguments))
+    with pytest.raises(InputError, match=f"{name}: expected an integer >= 1"):
         plan_chunks(options.pop("n_frames"), **options)

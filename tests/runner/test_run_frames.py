@@ -336,11 +336,11 @@ def test_a_damaged_chunk_is_recomputed_with_a_warning(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("arguments", "message"),
     [
-        ({"n_frames": 0}, "n_frames must be a positive integer"),
-        ({"chunk_frames": 2.5}, "chunk_frames must be a positive integer"),
-        ({"segment_chunks": 0}, "segment_chunks must be a positive integer"),
+        ({"n_frames": 0}, "n_frames: expected an integer >= 1"),
+        ({"chunk_frames": 2.5}, "chunk_frames: expected an integer >= 1"),
+        ({"segment_chunks": 0}, "segment_chunks: expected an integer >= 1"),
         ({"scheduler": 8786}, "scheduler must be None, 'synchronous' or an address"),
-        ({"n_workers": 0, "scheduler": None}, "n_workers must be a positive integer"),
+        ({"n_workers": 0, "scheduler": None}, "n_workers: expected an integer >= 1"),
     ],
 )
 def test_bad_arguments_are_clear_errors(tmp_path: Path, arguments: dict, message: str) -> None:

@@ -17,7 +17,7 @@ from ..mesh.mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
-from ..validate import as_faces, as_positive
+from ..validate import as_count, as_faces, as_positive
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 
 __all__ = ["refine_registration", "Refinement"]
@@ -269,8 +269,8 @@ def refine_registration(
     D0, Fw, back, keep = _validated_meshes(registered, F, scans)
     K, nw = D0.shape[0], D0.shape[1]
     n_full = back.size
-    M = _positive_int(neighbours, "neighbours")
-    n_iter = _positive_int(iterations, "iterations", allow_zero=True)
+    M = as_count(neighbours, name="neighbours")
+    n_iter = as_count(iterations, name="iterations", minimum=0)
     alpha = as_positive(alpha, name="alpha", allow_zero=True)
     if flow not in ("farneback", "dis"):
         raise InputError(f"flow: expected 'farneback' or 'dis', got {flow!r}")
@@ -374,12 +374,6 @@ def refine_registration(
 
 
 # ----------------------------------------------------------------------------- validation
-
-
-def _positive_int(x: Any, name: str, *, allow_zero: bool = False) -> int:
-    if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < (0 if allow_zero else 1):
-        raise InputError(f"{name}: expected an integer >= {0 if allow_zero else 1}, got {x!r}")
-    return int(x)
 
 
 def _validated_meshes(registered: Any, F: Any,

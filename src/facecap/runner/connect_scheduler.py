@@ -9,7 +9,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from ..errors import InputError
-from .plan_chunks import _positive_int
+from ..validate import as_count
 
 __all__ = ["SYNCHRONOUS", "connect_scheduler"]
 
@@ -61,7 +61,7 @@ def connect_scheduler(
     # Not the process's default client: the caller's own Dask work keeps its client,
     # and the runner names its client wherever Dask would otherwise look one up.
     if scheduler is None:
-        n_workers = _positive_int(n_workers, "n_workers")
+        n_workers = as_count(n_workers, name="n_workers")
         # A random dashboard port: the fixed default (8787) collides with any other
         # cluster on the machine, and distributed then warns.
         with LocalCluster(

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import operator
 from typing import NamedTuple
 
-from ..errors import InputError
+from ..validate import as_count
 
 __all__ = ["FrameChunk", "plan_chunks"]
 
@@ -69,10 +68,10 @@ def plan_chunks(n_frames: int, *, chunk_frames: int = 32, segment_chunks: int | 
     >>> [(c.segment, c.previous) for c in plan_chunks(70, chunk_frames=32, segment_chunks=2)]
     [(0, None), (0, 0), (1, None)]
     """
-    n_frames = _positive_int(n_frames, "n_frames")
-    chunk_frames = _positive_int(chunk_frames, "chunk_frames")
+    n_frames = as_count(n_frames, name="n_frames")
+    chunk_frames = as_count(chunk_frames, name="chunk_frames")
     if segment_chunks is not None:
-        segment_chunks = _positive_int(segment_chunks, "segment_chunks")
+        segment_chunks = as_count(segment_chunks, name="segment_chunks")
     chunks = []
     for index, start in enumerate(range(0, n_frames, chunk_frames)):
         segment = 0 if segment_chunks is None else index // segment_chunks
@@ -80,15 +79,3 @@ def plan_chunks(n_frames: int, *, chunk_frames: int = 32, segment_chunks: int | 
         chunks.append(FrameChunk(index, start, min(start + chunk_frames, n_frames), segment,
                                  None if first_of_segment else index - 1))
     return chunks
-
-
-def _positive_int(value: object, name: str) -> int:
-    if isinstance(value, bool):
-        raise InputError(f"{name} must be a positive integer; got {value!r}")
-    try:
-        number = operator.index(value)  # type: ignore[call-overload]
-    except TypeError:
-        raise InputError(f"{name} must be a positive integer; got {value!r}") from None
-    if number < 1:
-        raise InputError(f"{name} must be a positive integer; got {number}")
-    return number

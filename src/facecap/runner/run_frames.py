@@ -36,7 +36,8 @@ from ..errors import FacecapWarning, FileFormatError, InputError, SolverError
 from ..io.atomic_write import atomic_path, atomic_write_text
 from .connect_scheduler import connect_scheduler
 from .frame_stage import FrameStage, stage_identity
-from .plan_chunks import FrameChunk, _positive_int, plan_chunks
+from ..validate import as_count
+from .plan_chunks import FrameChunk, plan_chunks
 from .run_chunk import chunk_file_name, read_chunk, run_chunk
 
 __all__ = ["MANIFEST_FILE", "MANIFEST_FORMAT", "FrameRun", "run_frames"]
@@ -235,7 +236,7 @@ def run_frames(
     chunks = plan_chunks(n_frames, chunk_frames=chunk_frames, segment_chunks=segment_chunks)
     if scheduler is not None and not isinstance(scheduler, str):
         raise InputError(f"scheduler must be None, 'synchronous' or an address string; got {type(scheduler).__name__}")
-    _positive_int(n_workers, "n_workers")
+    as_count(n_workers, name="n_workers")
     if not (isinstance(connect_timeout_s, (int, float)) and connect_timeout_s > 0):
         raise InputError(f"connect_timeout_s must be a positive number of seconds; got {connect_timeout_s!r}")
     identity = stage_identity(stage)

@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 from ..errors import InputError
 from ..structures import MarkerSequence, Mesh
 from ..typing import FloatArray, IntArray
-from ..validate import as_faces, as_positive, as_rigid_transform
+from ..validate import as_count, as_faces, as_positive, as_rigid_transform
 from .expression_curves import _smoothstep, smooth_expression_curves
 from .ict_sample import IctSample, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
@@ -350,12 +350,6 @@ def named_curves(kind: str, n_frames: int, names: Sequence[str], *, rate: float,
     raise InputError(f"curves: expected an array or one of {CURVE_GENERATORS}, got {kind!r}")
 
 
-def _count(x: Any, name: str, *, minimum: int) -> int:
-    if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or x < minimum:
-        raise InputError(f"{name}: expected an integer >= {minimum}, got {x!r}")
-    return int(x)
-
-
 RANDOM_IDENTITY_SD = 0.7
 """Spread of :func:`random_identity`'s ICT identity coefficients (clipped at +-1.3)."""
 
@@ -513,7 +507,7 @@ def generate_performance(
     sample = load_ict_sample() if sample is None else sample
     if not isinstance(sample, IctSample):
         raise InputError(f"sample: expected an IctSample, got {type(sample).__name__}")
-    seed = _count(seed, "seed", minimum=0)
+    seed = as_count(seed, name="seed", minimum=0)
     rate = as_positive(rate, name="rate")
     offset = as_positive(marker_offset_mm, name="marker_offset_mm", allow_zero=True)
     noise_mm = as_positive(noise_mm, name="noise_mm", allow_zero=True)
@@ -522,11 +516,11 @@ def generate_performance(
         raise InputError(f"gap_fraction: expected a fraction in [0, 0.5], got {gap_fraction}")
     rot_rad = np.deg2rad(as_positive(head_rotation_deg, name="head_rotation_deg", allow_zero=True))
     shift_mm = as_positive(head_translation_mm, name="head_translation_mm", allow_zero=True)
-    n_band = _count(headband_markers, "headband_markers", minimum=0)
+    n_band = as_count(headband_markers, name="headband_markers", minimum=0)
     if n_band > MAX_HEADBAND_MARKERS:
         raise InputError(f"headband_markers: expected at most {MAX_HEADBAND_MARKERS}, got {n_band}")
     if n_markers is not None:
-        n_markers = _count(n_markers, "n_markers", minimum=1)
+        n_markers = as_count(n_markers, name="n_markers", minimum=1)
     if mocap_frame is not None:
         mocap_frame = as_rigid_transform(mocap_frame, name="mocap_frame")
     if head_pivot not in HEAD_PIVOTS_MM:
@@ -540,7 +534,7 @@ def generate_performance(
     map_error_mm = as_positive(map_error_mm, name="map_error_mm", allow_zero=True)
 
     if curves is None or isinstance(curves, str):
-        T = DEFAULT_FRAMES if n_frames is None else _count(n_frames, "n_frames", minimum=1)
+        T = DEFAULT_FRAMES if n_frames is None else as_count(n_frames, name="n_frames", minimum=1)
         W = named_curves("smooth" if curves is None else curves, T, names, rate=rate, seed=seed)
     else:
         try:
@@ -549,7 +543,7 @@ def generate_performance(
             raise InputError("curves: expected a numeric (T, 53) array") from None
         T = W.shape[0] if W.ndim == 2 else -1
         if n_frames is not None:
-            T = _count(n_frames, "n_frames", minimum=1)
+            T = as_count(n_frames, name="n_frames", minimum=1)
         if W.shape != (T, len(names)) or T < 1:
             raise InputError(f"curves: expected shape ({'T' if T < 1 else T}, {len(names)}), got {W.shape}")
         if not np.all(np.isfinite(W)):
