@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from facecap.errors import MarkerError
+from facecap.errors import InputError, MarkerError
 from facecap.markers.condition_take import condition_take, savitzky_golay
 from facecap.synth import generate_performance
 
@@ -111,5 +111,5 @@ def test_savitzky_golay_keeps_a_polynomial_of_its_order() -> None:
     t = np.linspace(-1, 1, 50)
     cubic = np.stack([1 + 2 * t - t**2 + 0.5 * t**3, t**3], axis=1)
     np.testing.assert_allclose(savitzky_golay(cubic, 9, 3), cubic, atol=1e-12)
-    with pytest.raises(ValueError, match="odd"):
+    with pytest.raises(InputError, match="odd"):
         savitzky_golay(cubic, 8, 3)

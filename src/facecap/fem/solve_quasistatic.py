@@ -280,6 +280,17 @@ class QuasistaticSolver:
             x, alpha, trial = self._line_search(x, a, state.energy, r, step, free)
             timings["line_search"] += time.perf_counter() - t
             iterations += 1
+            if not exact:
+                # The projection sets an active fibre's negative stiffness (the force-length curve's
+                # descending limb) to zero; where little else holds a node in that direction the
+                # projected step is far too long there, and the line search crawls (steps of 1e-9 of
+                # it, seen on an occasional fTetWild mesh, then no decrease at all). A Marquardt
+                # damping shortens such a step where it overshoots and fades once full steps are taken.
+                if alpha < _OVERSHOOT_ALPHA:  # no decrease at all (alpha 0) included
+                    damping = max(_DAMPING_GROWTH * damping, _FIRST_DAMPING)
+                    damping_floor = _FIRST_DAMPING  # taken off, the overshoot came back at once (seen)
+                elif alpha == 1.0:
+                    damping = max(damping / _DAMPING_GROWTH, damping_floor)
             if alpha == 0.0 or trial is None:
                 if exact:
                     # An exact step that positive definiteness let through can still point where the energy
@@ -287,22 +298,10 @@ class QuasistaticSolver:
                     # take the projected step from the same point rather than end the solve there
                     wait_before_exact = 1
                     continue
-                if damping < _MAX_DAMPING:
-                    damping = max(_DAMPING_GROWTH * damping, _FIRST_DAMPING)
+                if damping <= _MAX_DAMPING:  # retry from the same point, damped further
                     continue
                 break
             state = trial  # energy and forces at the new x; its stiffness only if another step follows
-            if not exact:
-                # The projection sets an active fibre's negative stiffness (the force-length curve's
-                # descending limb) to zero; where little else holds a node in that direction the
-                # projected step is far too long there, and the line search crawls (steps of 1e-9 of
-                # it, seen on an occasional fTetWild mesh, then no decrease at all). A Marquardt
-                # damping shortens such a step where it overshoots and fades once full steps are taken.
-                if alpha < _OVERSHOOT_ALPHA:
-                    damping = max(_DAMPING_GROWTH * damping, _FIRST_DAMPING)
-                    damping_floor = _FIRST_DAMPING  # taken off, the overshoot came back at once (seen)
-                elif alpha == 1.0:
-                    damping = max(damping / _DAMPING_GROWTH, damping_floor)
             if alpha == 1.0 and wait_before_exact > 0:
                 wait_before_exact -= 1
         self._positions, self._activations, self._state = x, a, state

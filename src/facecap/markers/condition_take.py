@@ -10,7 +10,7 @@ from typing import Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..errors import FacecapWarning, MarkerError
+from ..errors import FacecapWarning, InputError, MarkerError
 from ..structures import MarkerSequence
 from .bilateral_filter import bilateral_filter
 from .choose_temporal_sigma import TemporalSigmaChoice, choose_temporal_sigma
@@ -361,7 +361,7 @@ def savitzky_golay(values: np.ndarray, window: int, order: int) -> np.ndarray:
     values = np.asarray(values, dtype=np.float64)
     n, half = len(values), window // 2
     if window % 2 == 0 or not order < window <= n:
-        raise ValueError(f"window {window}: expected an odd length above the order {order} and at most {n}")
+        raise InputError(f"window {window}: expected an odd length above the order {order} and at most {n}")
     positions = np.arange(-half, half + 1, dtype=np.float64)
     vandermonde = positions[:, None] ** np.arange(order + 1)
     hat = vandermonde @ np.linalg.pinv(vandermonde)  # fitted values of a window from its samples
