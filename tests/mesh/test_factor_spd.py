@@ -5,7 +5,7 @@ import pytest
 import scipy.sparse as sp
 from scipy.sparse.linalg import spsolve
 
-from facecap.mesh.factor_spd import SpdFactor, available_backends
+from facecap.mesh.factor_spd import SpdFactor, available_backends, load_backend
 from facecap.errors import InputError, SolverError
 
 
@@ -80,3 +80,33 @@ def test_an_indefinite_matrix_is_refused_by_every_backend(backend):
     with pytest.raises(SolverError, match="positive definite|factorisation failed"):
         SpdFactor((A - shift * sp.eye(300)).tocsr(), backend=backend)
     SpdFactor((A + shift * sp.eye(300)).tocsr(), backend=backend)  # the same sparsity, definite: factored
+
+
+def test_load_backend_loads_every_library_a_factorisation_needs():
+    # a fresh interpreter: after load_backend, factoring and solving a real system loads no other shared
+    # object (what lets animate run its second thread beside the set-up without two threads loading at once)
+    import subprocess
+    import sys
+
+    code = (
+        "import numpy as np, scipy.sparse as sp\n"
+        "from facecap.mesh.factor_spd import SpdFactor, load_backend\n"
+        "libs = lambda: {l.split()[-1] for l in open('/proc/self/maps') if '.so' in l}\n"
+        "before = libs()\n"
+        "print(load_backend('auto'))\n"
+        "loaded = libs()\n"
+        "A = sp.diags([4.0] * 300).tocsr() + sp.eye(300, k=1) + sp.eye(300, k=-1)\n"
+        "x = SpdFactor(A).solve(np.ones((300, 4)))\n"
+        "print(sorted(libs() - loaded))\n"
+        "print(any('mkl_core' in p for p in loaded - before))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split("\n")
+    assert out[0] == "pardiso"
+    assert out[1] == "[]", f"libraries loaded by the first factorisation after load_backend: {out[1]}"
+    assert out[2] == "True"  # MKL's computational library, which import alone does not load
+
+
+def test_load_backend_refuses_unknown_names():
+    assert load_backend("scipy") == "scipy"
+    with pytest.raises(InputError):
+        load_backend("cholmod")

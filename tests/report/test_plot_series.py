@@ -34,6 +34,8 @@ def test_matrix_summary_matches_numpy_ignoring_gaps():
     A = rng.random((30, 9))
     A[rng.random(A.shape) < 0.3] = np.nan
     A[3] = np.nan
+    A[4, 1:] = np.nan  # one value
+    A[5, 2:] = np.nan  # two: the quantiles interpolate between them
     med, p95, mx = _nan_stats(A)
     for i in range(30):
         row = A[i][~np.isnan(A[i])]

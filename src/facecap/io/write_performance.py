@@ -432,9 +432,10 @@ def import_writers(exports: Iterable[str]) -> None:
 
     For a caller that wants the cost (the USD libraries 0.12 s, matplotlib for
     the report's plots 0.25 s) before its long work rather than at the end, or
-    an import error at once. Call it on the main thread: a compiled module
-    loading on one thread while another thread loads a library can deadlock
-    (seen: usd-core's initialisers against PARDISO's ctypes load of MKL).
+    an import error at once. Call it where no other thread loads a library
+    meanwhile: a compiled module loading on one thread while another thread
+    loads one can deadlock (seen: usd-core's initialisers against MKL's first
+    load inside PARDISO; :func:`facecap.mesh.load_backend` loads MKL's first).
     """
     import importlib
 

@@ -20,7 +20,8 @@ In the order a user meets them:
   the scan's own vertices, for review files, as a :class:`ReviewMesh`.
 - :class:`SpdFactor` (``factor_spd.py``): the sparse SPD factorisation every
   solver of a mesh's operators shares (PARDISO, or SciPy's SuperLU where MKL is
-  missing); :func:`available_backends` those that load here.
+  missing); :func:`available_backends` those that load here, :func:`load_backend` loads one's
+  libraries now (before other threads start).
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ from __future__ import annotations
 from .check_mesh import MeshCheck, check_mesh
 from .connected_pieces import connected_pieces
 from .facing_outward import facing_outward
-from .factor_spd import SpdFactor, available_backends
+from .factor_spd import SpdFactor, available_backends, load_backend
 from .laplacian import LaplaceOperators, laplace_operators
 from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
@@ -39,6 +40,7 @@ __all__ = [
     "check_mesh",
     "SpdFactor",
     "available_backends",
+    "load_backend",
     "MeshCheck",
     "connected_pieces",
     "facing_outward",

@@ -12,7 +12,7 @@ from .._mkl import locate_mkl_runtime
 from ..errors import FacecapWarning, InputError, SolverError
 from ..typing import FloatArray
 
-__all__ = ["SpdFactor", "available_backends"]
+__all__ = ["SpdFactor", "available_backends", "load_backend"]
 
 Backend = Literal["auto", "pardiso", "scipy"]
 
@@ -29,6 +29,35 @@ def available_backends() -> list[str]:
         pass
     names.append("scipy")
     return names
+
+
+def load_backend(backend: Backend = "auto") -> str:
+    """Load the compiled libraries ``backend`` solves with, on this thread, now; returns the backend's name.
+
+    MKL's runtime loads its computational libraries (core, threading, the
+    CPU's kernels: eight shared objects) at the first PARDISO call, not at
+    import. A job that runs other work on a second thread beside its first
+    factorisation calls this first, so that no library loads on one thread
+    while another thread loads one (seen to deadlock: usd-core's initialisers
+    against MKL's first load). It factors and solves a 2 x 2 system; the
+    SciPy backend needs nothing loaded.
+
+    Raises
+    ------
+    InputError
+        If ``backend`` is not one of ``'auto'``, ``'pardiso'``, ``'scipy'`` or is not available here.
+    """
+    if backend not in ("auto", "pardiso", "scipy"):
+        raise InputError(f"backend: expected one of 'auto', 'pardiso', 'scipy', got {backend!r}")
+    have = available_backends()
+    name = have[0] if backend == "auto" else backend
+    if name not in have:
+        raise InputError(f"backend: {backend!r} is not available here (have {have})")
+    if name == "pardiso":
+        tiny = SpdFactor(sp.csr_matrix(np.array([[2.0, 0.5], [0.5, 1.0]])), backend="pardiso")
+        tiny.solve(np.ones(2))
+        tiny.free()
+    return name
 
 
 def _new_pardiso_solver() -> Any:

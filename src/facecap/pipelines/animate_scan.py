@@ -34,7 +34,7 @@ from ..markers.consensus_stabilize import estimate_marker_noise
 from ..markers.prepare_take import (DEFAULT_REST_AVERAGE_S, MIN_DRIVING_MARKERS, PreparedMarkers,
                                     check_take_against_map, head_pose_in_scan, prepare_markers, rest_average)
 from ..mesh.check_mesh import check_mesh
-from ..mesh.factor_spd import Backend
+from ..mesh.factor_spd import Backend, load_backend
 from ..structures import MarkerSequence, Mesh
 from ..units import check_take_units, mm_per_unit
 from ..validate import as_positive
@@ -213,17 +213,18 @@ def animate_scan(
     # recover it at the rest frame; then the shell is built again)
     planned = np.asarray(matched.vertex_indices[np.arange(len(matched.labels)), np.argmax(matched.weights, axis=1)],
                          dtype=np.int64)
-    # compiled modules the writer at the end loads, loaded here on this thread, before the other starts (see below)
-    import_writers(exports)
+    # MKL's libraries, which the set-up's first factorisation would load, loaded here, before the other thread starts
+    load_backend(backend)
     with warnings.catch_warnings(record=True) as records, ThreadPoolExecutor(1) as beside_setup:
         warnings.simplefilter("always", FacecapWarning)
         # Beside the set-up, on a second thread: its sparse solves keep one core busy, not two (measured
         # at 700k vertices). The markers' side (conditioning, the rest pose, the mesh round the markers,
         # the warp and every frame through it), then the mesh check (a report only: the shell handles
-        # what it finds on its own). One OpenBLAS thread meanwhile (the set-up itself uses MKL): a second
-        # would only contend for the core PARDISO's solves use. Nothing beside it imports a compiled
-        # module: a library loading on one thread while another loads one can deadlock (seen: usd-core's
-        # initialisers against PARDISO's ctypes load of MKL); the marker modules import theirs at the top.
+        # what it finds on its own), then the modules the writer at the end needs (usd-core, matplotlib:
+        # 0.5 s). One OpenBLAS thread meanwhile (the set-up itself uses MKL): a second would only contend
+        # for the core PARDISO's solves use. Libraries load on the second thread only: with MKL's loaded
+        # above, the set-up loads none (a library loading on one thread while another loads one can
+        # deadlock; seen: usd-core's initialisers against MKL's first load inside PARDISO).
         t = time.perf_counter()
         with threadpool_limits(limits={"openblas": 1}):
             stage(f"conditioning {markers.n_frames} frames x {markers.n_markers} markers, beside the set-up")
@@ -232,6 +233,7 @@ def animate_scan(
                 smooth=smooth, temporal_sigma_s=temporal_sigma_s, rest_average_s=rest_average_s, neutral=neutral,
                 marker_offset_mm=marker_offset_mm, rest_pose=rest_pose)
             mesh_check_run = beside_setup.submit(_timed, check_mesh, scan.vertices, scan.faces)
+            writers_import = beside_setup.submit(import_writers, exports)
             stage(f"factoring the thin shell: {scan.n_vertices} vertices, {planned.size} markers")
             solver = ThinShellSolver(
                 scan.vertices, scan.faces, planned,
@@ -255,6 +257,7 @@ def animate_scan(
         offsets = MarkerOffsets(scan.vertices, scan.faces, solver, marker_offset_mm=marker_offset_mm, ring=ring)
         timings["shell_setup_s"] = time.perf_counter() - t  # the shell and the offsets' part of it that needs it
         mesh_check, timings["check_mesh_s"] = mesh_check_run.result()
+        writers_import.result()
         marker_displacements = face_markers - centres[None]
         loo = warp.leave_one_out_residuals()
 
