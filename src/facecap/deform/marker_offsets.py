@@ -108,16 +108,21 @@ def marker_ring(V: FloatArray, F: IntArray, marker_vertices: IntArray) -> Marker
 def _ring_normals(X: np.ndarray, faces: np.ndarray, scatter: sp.csr_matrix, n_markers: int) -> np.ndarray:
     """Area-weighted unit normals (t, K, 3) at the marker vertices, the ring's vertices at ``X`` (t, r, 3) float32."""
     t, f = X.shape[0], faces.shape[0]
-    a = X[:, faces[:, 0]]
-    u = (X[:, faces[:, 1]] - a).transpose(2, 1, 0)  # (3, faces, t): each triangle's two edges
-    w = (X[:, faces[:, 2]] - a).transpose(2, 1, 0)
+    # (r, 3, t): a corner's coordinates contiguous over the frames, so the gathers below copy whole rows
+    # and the products run on contiguous memory (half the time of gathering from (t, r, 3); same values)
+    corners = np.ascontiguousarray(X.transpose(1, 2, 0))
+    a = corners[faces[:, 0]]
+    u = corners[faces[:, 1]]  # (faces, 3, t): each triangle's two edges
+    u -= a
+    w = corners[faces[:, 2]]
+    w -= a
     fn = np.empty((f, 3, t), np.float32)  # the cross product, component by component
-    np.multiply(u[1], w[2], out=fn[:, 0])
-    fn[:, 0] -= u[2] * w[1]
-    np.multiply(u[2], w[0], out=fn[:, 1])
-    fn[:, 1] -= u[0] * w[2]
-    np.multiply(u[0], w[1], out=fn[:, 2])
-    fn[:, 2] -= u[1] * w[0]
+    np.multiply(u[:, 1], w[:, 2], out=fn[:, 0])
+    fn[:, 0] -= u[:, 2] * w[:, 1]
+    np.multiply(u[:, 2], w[:, 0], out=fn[:, 1])
+    fn[:, 1] -= u[:, 0] * w[:, 2]
+    np.multiply(u[:, 0], w[:, 1], out=fn[:, 2])
+    fn[:, 2] -= u[:, 1] * w[:, 0]
     N = (scatter @ fn.reshape(f, 3 * t)).reshape(n_markers, 3, t).astype(np.float64)
     N /= np.sqrt(np.einsum("kct,kct->kt", N, N))[:, None]
     return N.transpose(2, 0, 1)
