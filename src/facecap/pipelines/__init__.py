@@ -16,6 +16,8 @@ calls the solver packages (arrays in, arrays out), and writes the result through
   the scans registered into a bases folder; :func:`blend_take` (``blend_take.py``):
   ``facecap blend``, every frame of the take rebuilt from the bases. All three condition the
   take once, as the plan recorded it: :func:`replay_conditioning` (``replay_conditioning.py``).
+- :func:`write_blended_performance` (``write_blended_performance.py``): the result folder of a
+  performance from bases and weights, as ``blend`` writes it.
 
 The other commands' jobs still live in their solver packages (issue 29): ``map`` in
 :mod:`facecap.registration`, ``solve-muscles`` and ``edit-muscles`` in :mod:`facecap.muscles`.
@@ -32,6 +34,7 @@ from .capture_wrinkles import WrinkleCapture, capture_wrinkles
 from .plan_scans import conditioned_take_path, plan_scans
 from .register_planned_scans import register_planned_scans
 from .replay_conditioning import replay_conditioning
+from .write_blended_performance import write_blended_performance
 
 __all__ = [
     "animate_scan",
@@ -44,4 +47,5 @@ __all__ = [
     "register_planned_scans",
     "blend_take",
     "replay_conditioning",
+    "write_blended_performance",
 ]

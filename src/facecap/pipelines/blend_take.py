@@ -17,13 +17,14 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..blendshapes.reconstruct_performance import BlendWithPose, blend_weights_with_head_pose, write_blended_performance
+from ..blendshapes.reconstruct_performance import BlendWithPose, blend_weights_with_head_pose
 from ..errors import FacecapWarning, InputError
 from ..io.read_markers import read_markers
 from ..io.registered_scans import CONDITIONED_TAKE_FILE, read_registered_scans
 from ..io.write_performance import check_result_destination
 from ..markers.condition_take import ConditionedTake
 from .replay_conditioning import replay_conditioning
+from .write_blended_performance import write_blended_performance
 
 __all__ = ["blend_take"]
 
