@@ -242,7 +242,7 @@ def _cmd_map(args: argparse.Namespace) -> int:
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
     from .io.read_mesh import read_mesh
-    from .registration.map_markers import map_markers
+    from .pipelines.map_markers import map_markers
 
     auto = args.scan_units.strip().lower() == "auto"
     scan = read_mesh(args.scan, unit=None if auto else args.scan_units)

@@ -18,9 +18,11 @@ calls the solver packages (arrays in, arrays out), and writes the result through
   take once, as the plan recorded it: :func:`replay_conditioning` (``replay_conditioning.py``).
 - :func:`write_blended_performance` (``write_blended_performance.py``): the result folder of a
   performance from bases and weights, as ``blend`` writes it.
+- :func:`map_markers` (``map_markers.py``): ``facecap map``, a take's markers placed on a scan and
+  written as ``map.json`` with its report and picture (:func:`map_side_files` names those two).
 
-The other commands' jobs still live in their solver packages (issue 29): ``map`` in
-:mod:`facecap.registration`, ``solve-muscles`` and ``edit-muscles`` in :mod:`facecap.muscles`.
+The other commands' jobs still live in their solver packages (issue 29): ``solve-muscles`` and
+``edit-muscles`` in :mod:`facecap.muscles`.
 
 The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
 function; reach a module itself with ``importlib.import_module``.
@@ -31,6 +33,7 @@ from __future__ import annotations
 from .animate_scan import OFFSET_WARNING_MM, AnimationResult, animate_scan
 from .blend_take import blend_take
 from .capture_wrinkles import WrinkleCapture, capture_wrinkles
+from .map_markers import map_markers, map_side_files
 from .plan_scans import conditioned_take_path, plan_scans
 from .register_planned_scans import register_planned_scans
 from .replay_conditioning import replay_conditioning
@@ -48,4 +51,6 @@ __all__ = [
     "blend_take",
     "replay_conditioning",
     "write_blended_performance",
+    "map_markers",
+    "map_side_files",
 ]
