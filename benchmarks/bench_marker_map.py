@@ -20,7 +20,7 @@ in 40-120, identity :func:`~facecap.synth.random_identity` (seed), resting expre
 :func:`~facecap.synth.random_rest_expression` (seed), a mocap frame drawn uniformly over all rotations
 (upside down included) 1 m round the origin; odd seeds carry a head band of 0-5 markers. The scan is
 moved into a scanner frame drawn the same way, so that nothing lines up by chance. The job runs as the
-command does (:func:`~facecap.registration.map_markers`: the take conditioned, the search, the files
+command does (:func:`~facecap.pipelines.map_markers`: the take conditioned, the search, the files
 written), and the written ``map.json`` is read back with :func:`~facecap.io.read_correspondence` and
 compared with ``scan.vertices[case.marker_vertices]``.
 
@@ -62,7 +62,7 @@ from bench_accuracy import leave_one_out  # noqa: E402
 from facecap.markers.prepare_take import prepare_markers  # noqa: E402
 from facecap.io.read_correspondence import read_correspondence  # noqa: E402
 from facecap.io.read_markers import read_markers  # noqa: E402
-from facecap.registration import map_markers  # noqa: E402
+from facecap.pipelines import map_markers  # noqa: E402
 from facecap.structures import Mesh  # noqa: E402
 from facecap.synth import (generate_performance, load_ict_sample, bundled_path, random_identity,  # noqa: E402
                            random_rest_expression)

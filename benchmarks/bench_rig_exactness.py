@@ -46,7 +46,7 @@ def _compare(folder: Path) -> dict[str, Any]:
 
 
 def main() -> None:
-    from facecap.blendshapes import write_blended_performance
+    from facecap.pipelines import write_blended_performance
     from facecap.demo import run_demo
     from facecap.pipelines import animate_scan
 

@@ -7,7 +7,7 @@ One run prints a ``RESULT {json}`` line and a markdown table::
 What is measured (wall time; generating the take and the scans is not timed):
 
 registration
-    :func:`facecap.blendshapes.scan_workflow.register_planned_scans` on
+    :func:`facecap.pipelines.register_planned_scans` on
     ``--scans`` simulated scans of about ``--scan-vertices`` vertices each
     (:func:`facecap.synth.scan_expression.scan_expression` of the ground truth
     at the planned frames: new sampling, 0.05 mm noise, holes, own scanner
@@ -18,7 +18,7 @@ registration
     (``tolerance=0, max_frames=scans``). Bar: 20 scans of 80k vertices in
     under 10 minutes on 2 cores (the paper: 5 hours).
 blend
-    :func:`facecap.blendshapes.scan_workflow.blend_take` for the whole take:
+    :func:`facecap.pipelines.blend_take` for the whole take:
     NNLS weights per frame (eq. 12) and the dense performance written to
     ``vertices.npy`` (1500 x 80k x 3 float32 = 1.4 GB). Bar: under 10 s.
     Baseline in the same run: the weights by a loop of
@@ -45,7 +45,7 @@ from scipy.optimize import nnls
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _load import Window, peak_rss_gb  # noqa: E402
 
-from facecap.blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans  # noqa: E402
+from facecap.pipelines import blend_take, plan_scans, register_planned_scans, replay_conditioning  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402
 from facecap.synth import generate_performance, load_ict_sample, write_planned_scans, write_synthetic_case  # noqa: E402
 
@@ -84,11 +84,10 @@ def main(argv: list[str] | None = None) -> int:
         # baseline: the same weights by scipy's NNLS per frame, and the product by einsum
         folder = read_registered_scans(root / "bases")
         weights = np.load(root / "blend" / "weights.npy")
-        from facecap.blendshapes.scan_workflow import _condition
         from facecap.io.read_markers import read_markers
 
         take = read_markers(files.markers).select(folder["marker_labels"])
-        X = _condition(take, folder["plan"]["conditioning"]).positions.reshape(args.frames, -1)
+        X = replay_conditioning(take, folder["plan"]["conditioning"]).positions.reshape(args.frames, -1)
         A = folder["basis_markers"].reshape(len(plan.frames), -1).T
         with Window() as w_scipy:
             w_ref = np.stack([nnls(A, x)[0] for x in X])

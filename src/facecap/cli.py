@@ -242,7 +242,7 @@ def _cmd_map(args: argparse.Namespace) -> int:
     from .io.read_correspondence import read_correspondence
     from .io.read_markers import read_markers
     from .io.read_mesh import read_mesh
-    from .registration.map_markers import map_markers
+    from .pipelines.map_markers import map_markers
 
     auto = args.scan_units.strip().lower() == "auto"
     scan = read_mesh(args.scan, unit=None if auto else args.scan_units)
@@ -516,7 +516,7 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
 def _cmd_plan_scans(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .blendshapes.scan_workflow import plan_scans
+    from .pipelines.plan_scans import plan_scans
 
     out = Path(args.out)
     plan = plan_scans(args.markers, out, tolerance=args.tolerance, max_frames=args.max_scans,
@@ -529,7 +529,7 @@ def _cmd_plan_scans(args: argparse.Namespace) -> int:
 
 
 def _cmd_register_scans(args: argparse.Namespace) -> int:
-    from .blendshapes.scan_workflow import register_planned_scans
+    from .pipelines.register_planned_scans import register_planned_scans
 
     report = register_planned_scans(args.plan, args.markers, args.scans, args.out, template_path=args.template,
                                     scan_unit=args.scan_units, template_unit=args.template_units,
@@ -545,7 +545,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
 
 
 def _cmd_blend(args: argparse.Namespace) -> int:
-    from .blendshapes.scan_workflow import blend_take
+    from .pipelines.blend_take import blend_take
 
     report = blend_take(args.bases, args.markers, args.out, **_blend_options(args), progress=not args.quiet,
                         overwrite=args.overwrite)
@@ -562,7 +562,7 @@ def _blend_options(args: argparse.Namespace) -> dict:
 def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .blendshapes.scan_workflow import blend_take, conditioned_take_path, plan_scans, register_planned_scans
+    from .pipelines import blend_take, conditioned_take_path, plan_scans, register_planned_scans
     from .io.atomic_write import check_file_destination, check_folder_destination, ensure_folder
     from .io.registered_scans import BASES_MARKER_FILE
     from .io.write_performance import check_result_destination

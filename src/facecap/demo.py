@@ -213,7 +213,7 @@ def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, error_
     the one the plan rebuilds worst from its markers, on the colour scale ``error_vmax`` (mm)
     of ``frame_comparison.png``.
     """
-    from .blendshapes.scan_workflow import blend_take, plan_scans, register_planned_scans
+    from .pipelines import blend_take, plan_scans, register_planned_scans
     from .report import MeshPanel, plot_series, render_side_by_side
     from .report.evaluate_result import evaluate_result
     from .synth import write_planned_scans

@@ -521,7 +521,7 @@ def principal(blender: Path, tmp_path_factory: pytest.TempPathFactory) -> dict[s
     (``performance.json`` ``exports_report``) is the bound Blender must stay within.
     """
     from analytic_case import curved_grid
-    from facecap.blendshapes import write_blended_performance
+    from facecap.pipelines import write_blended_performance
 
     d = tmp_path_factory.mktemp("blender_principal")
     V, F = curved_grid(15)

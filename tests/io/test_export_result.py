@@ -81,7 +81,7 @@ def _first_frame_base(out) -> np.ndarray:
 
 def test_fewer_targets_state_the_error_they_leave(tmp_path):
     from analytic_case import curved_grid
-    from facecap.blendshapes import write_blended_performance
+    from facecap.pipelines import write_blended_performance
     from facecap.structures import Mesh
 
     V, F = curved_grid(15)

@@ -2,9 +2,6 @@
 
 In the order a user meets them:
 
-- :func:`plan_scans`, :func:`register_planned_scans`, :func:`blend_take`
-  (``scan_workflow.py``): the scan workflow file to file, as ``facecap
-  plan-scans``, ``register-scans`` and ``blend`` run it.
 - :func:`select_scan_frames` (``select_scan_frames.py``): the fewest frames of
   a conditioned take whose non-negative blends rebuild every frame (sec. 4,
   Algorithm 1), as a :class:`ScanPlan`.
@@ -12,29 +9,26 @@ In the order a user meets them:
   frames at once (eqs. 3 and 12), as :class:`NnlsWeights`.
 - :func:`blend_weights`, :func:`blend_weights_with_head_pose` (the weights and
   each frame's head pose solved together, as :class:`BlendWithPose`),
-  :func:`write_blended_performance` (``reconstruct_performance.py``): the dense
-  performance from bases and weights.
+  :func:`blend_rig` (``reconstruct_performance.py``): the dense performance from
+  bases and weights, as a rig about the rest shape (:class:`BlendRig`).
 
-The scan registration itself lives in :mod:`facecap.registration`.
+The scan registration itself lives in :mod:`facecap.registration`; the scan workflow file to
+file, as ``facecap plan-scans``, ``register-scans`` and ``blend`` run it, in :mod:`facecap.pipelines`.
 """
 
 from __future__ import annotations
 
 from .nnls_weights import NnlsWeights, nnls_weights
 from .reconstruct_performance import (
+    BlendRig,
     BlendWithPose,
+    blend_rig,
     blend_weights,
     blend_weights_with_head_pose,
-    write_blended_performance,
 )
-from .scan_workflow import blend_take, conditioned_take_path, plan_scans, register_planned_scans
 from .select_scan_frames import ScanPlan, select_scan_frames
 
 __all__ = [
-    "plan_scans",
-    "register_planned_scans",
-    "blend_take",
-    "conditioned_take_path",
     "select_scan_frames",
     "ScanPlan",
     "nnls_weights",
@@ -42,5 +36,6 @@ __all__ = [
     "blend_weights",
     "blend_weights_with_head_pose",
     "BlendWithPose",
-    "write_blended_performance",
+    "blend_rig",
+    "BlendRig",
 ]

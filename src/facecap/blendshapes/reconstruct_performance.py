@@ -1,21 +1,15 @@
-"""Dense performance from blendshape bases and per-frame NNLS weights (Huang et al. 2011, eq. 12)."""
+"""Dense performance from blendshape bases and per-frame NNLS weights (Huang et al. 2011, eq. 12), as a rig."""
 
 from __future__ import annotations
 
-from pathlib import Path
-from typing import Any, Iterable, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import InputError
-from ..io.result_rig import ResultRig
-from ..io.mocap_correspondence import write_mocap_correspondence
-from ..io.write_performance import PerformanceWriter
-from ..units import mm_per_unit
-from ..structures import Mesh
 from .nnls_weights import nnls_weights
 
-__all__ = ["BlendWithPose", "blend_weights", "blend_weights_with_head_pose", "write_blended_performance"]
+__all__ = ["BlendWithPose", "blend_weights", "blend_weights_with_head_pose", "BlendRig", "blend_rig"]
 
 DEFAULT_POSE_ITERATIONS = 4
 """Steps of :func:`blend_weights_with_head_pose` (each removes the remaining rotation to second order)."""
@@ -161,91 +155,61 @@ def blend_weights_with_head_pose(
     return BlendWithPose(weights, residual, R, t)
 
 
-def write_blended_performance(
-    out_dir: str | Path,
-    template: Mesh,
+class BlendRig(NamedTuple):
+    """Result of :func:`blend_rig`: the performance as a rest shape plus weighted shapes.
+
+    Attributes
+    ----------
+    shapes : (K + 1, n, 3) float64 array, mm
+        ``d_i - r`` for each basis (moved into the output frame), then ``r - c``.
+    coefficients : (T, K + 1) float32 array
+        Each frame's weights, then their sum less one.
+    """
+
+    shapes: np.ndarray
+    coefficients: np.ndarray
+
+
+def blend_rig(
+    rest: np.ndarray,
     bases: np.ndarray,
     weights: np.ndarray,
     *,
-    rate: float,
     output_from_bases: np.ndarray | None = None,
-    head_motion: np.ndarray | None = None,
-    exports: Iterable[str] = (),
-    metadata: dict[str, Any] | None = None,
-    extra_files: dict[str, Any] | None = None,
-    correspondence: dict[str, Any] | None = None,
-    batch_frames: int = 64,
-    write_vertices: bool = True,
-    rig_precision: str = "float32",
-    export_options: dict[str, Any] | None = None,
-    progress: bool = True,
-    overwrite: bool = False,
-) -> Path:
-    """Write ``m_t = c + sum_i w_t,i (d_i - c)`` to an output folder like ``facecap animate`` writes.
+) -> BlendRig:
+    """``m_t = c + sum_i w_t,i (d_i - c)`` as a rig about the rest shape ``r`` (eq. 12 about the bases' centroid).
 
-    ``c`` is the bases' centroid (see ``output_from_bases``); with weights
-    summing to one this is eq. 12's ``sum_i w_t,i d_i``. The result is a rig
-    (``rig/``, :class:`~facecap.io.ResultRig`) about the template ``r``:
-    ``m_t = r + sum_i w_t,i (d_i - r) + (sum_i w_t,i - 1) (r - c)``, the same
-    thing exactly, with the template as the rest shape blendshape clients
-    expect and one shape more for the weights' sum. ``vertices.npy`` is
-    evaluated from it.
+    ``c`` is the bases' centroid; with weights summing to one this is eq. 12's
+    ``sum_i w_t,i d_i``. The rig is ``m_t = r + sum_i w_t,i (d_i - r) + (sum_i w_t,i - 1) (r - c)``,
+    the same thing exactly, with the rest shape blendshape clients expect and one
+    shape more for the weights' sum.
 
     Parameters
     ----------
-    out_dir : str or Path
-    template : Mesh
-        Topology, UVs and unit of the output.
+    rest : (n, 3) float array, mm
+        The rest shape ``r`` (the template, in the output frame).
     bases : (K, n, 3) float array, mm
-        Blendshape bases (in the markers' frame).
+        Blendshape bases ``d_i`` (in the markers' frame).
     weights : (T, K) float array
-    rate : float
-        Frame rate, Hz.
     output_from_bases : (4, 4) float array, optional
-        Rigid transform from the bases' frame to the output's (the template's
-        own coordinates). The bases are moved by it and blended about their
-        centroid, so weights that do not sum to one scale the face about its
-        middle, not about either frame's origin.
-    head_motion : (T, 4, 4) float array, optional
-        The head's rigid motion per frame in the output frame (mm), as
-        ``facecap animate`` writes it: saved as ``head_motion.npy`` (in the
-        template's unit) and carried by the USD export as the mesh's
-        transform. The vertices stay stabilised.
-    exports : iterable of str
-        See :data:`facecap.io.EXPORT_FORMATS`.
-    metadata : dict, optional
-        Added to ``performance.json``.
-    extra_files : dict of str to array or str, optional
-        Written into the folder before it is moved into place: ``.npy`` names
-        get arrays, other names get text.
-    correspondence : dict, optional
-        The map from the output's face back into the capture's frame, written as
-        ``correspondence.npz``: the arguments of
-        :func:`~facecap.io.write_mocap_correspondence` (``mocap_points``,
-        ``face_points``, ``labels``, ``mocap_from_stabilized``: (K, 3) mm points,
-        K labels, (T, 4, 4) mm transforms).
-    batch_frames : int, default 64
-    write_vertices : bool, default True
-        Write ``vertices.npy`` besides the rig.
-    rig_precision : {'float32', 'int16'}, default 'float32'
-        Storage of the rig's shapes.
-    export_options : dict, optional
-        Passed to :func:`facecap.io.export_result`.
-    progress : bool, default True
-    overwrite : bool, default False
-        Replace an earlier result in ``out_dir`` (:class:`~facecap.io.PerformanceWriter`).
+        Rigid transform from the bases' frame to the output's. The bases are
+        moved by it and blended about their centroid, so weights that do not
+        sum to one scale the face about its middle, not about either frame's origin.
 
     Returns
     -------
-    Path
-        The finished folder.
+    BlendRig
+
+    Raises
+    ------
+    InputError
+        If the bases, the weights and the rest shape do not match.
     """
+    R = np.asarray(rest, dtype=np.float64)
     Bs = np.asarray(bases, dtype=np.float32)
     W = np.asarray(weights, dtype=np.float32)
-    if Bs.ndim != 3 or Bs.shape[1] != template.n_vertices or W.ndim != 2 or W.shape[1] != Bs.shape[0]:
-        raise InputError(f"bases {Bs.shape} and weights {W.shape} do not match a template of {template.n_vertices} vertices")
-    K, n, _ = Bs.shape
-    T = W.shape[0]
+    if Bs.ndim != 3 or Bs.shape[1] != R.shape[0] or W.ndim != 2 or W.shape[1] != Bs.shape[0]:
+        raise InputError(f"bases {Bs.shape} and weights {W.shape} do not match a template of {R.shape[0]} vertices")
     # The weights need not sum to one, and a sum of 1 + e scales the blend about the coordinate
     # origin: e times 1.5 m of false translation in a mocap frame (NNLS spends e on each frame's
     # stabilisation error). So the bases are moved into the output frame and blended about their
@@ -255,34 +219,6 @@ def write_blended_performance(
         pose = np.asarray(output_from_bases, dtype=np.float64)
         B64 = B64 @ pose[:3, :3].T + pose[:3, 3]
     centre = B64.reshape(-1, 3).mean(axis=0)
-    rest = template.vertices.astype(np.float64)
-    to_unit = 1.0 / mm_per_unit(template.source_unit)
-    shapes = np.concatenate([B64 - rest[None], (rest - centre)[None]]).astype(np.float32) * np.float32(to_unit)
+    shapes = np.concatenate([B64 - R[None], (R - centre)[None]])
     coefficients = np.concatenate([W, (W.astype(np.float64).sum(axis=1, keepdims=True) - 1.0).astype(np.float32)], axis=1)
-    del B64
-    rig = ResultRig((rest * to_unit).astype(np.float32), shapes, coefficients, units=template.source_unit,
-                    names=tuple(f"basis_{k}" for k in range(K)) + ("weight_sum",))
-
-    pose = None
-    if head_motion is not None:
-        pose = np.asarray(head_motion, dtype=np.float64)
-        if pose.shape != (T, 4, 4) or not np.all(np.isfinite(pose)):
-            raise InputError(f"head_motion: expected finite ({T}, 4, 4) transforms, got {pose.shape}")
-    with PerformanceWriter(out_dir, mesh=template, rate=rate, n_frames=T, exports=exports, vertices=write_vertices,
-                           overwrite=overwrite,
-                           export_options={"progress": progress, **(export_options or {})}) as writer:
-        writer.write_rig(rig, precision=rig_precision)
-        if writer.needs_frames:
-            writer.stream_rig(batch_frames=batch_frames, head_pose=pose, progress=progress, desc="blend")
-        if pose is not None:
-            in_unit = pose.copy()
-            in_unit[:, :3, 3] = template.to_source_unit(in_unit[:, :3, 3])
-            np.save(writer.path("head_motion.npy"), in_unit)
-        if correspondence is not None:
-            write_mocap_correspondence(writer.path("correspondence.npz"), **correspondence)
-        for name, content in (extra_files or {}).items():
-            if name.endswith(".npy"):
-                np.save(writer.path(name), content)
-            else:
-                writer.path(name).write_text(str(content))
-        return writer.finish({"method": "huang2011-blendshapes", "stabilized": pose is not None, **(metadata or {})})
+    return BlendRig(shapes, coefficients)

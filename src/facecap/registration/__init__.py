@@ -22,10 +22,11 @@ In the order a user meets them:
   an :class:`IcpResult`; :func:`rigid_icp_to_surface` runs it on a
   :class:`ClosestPointSurface` built once.
 - :func:`find_marker_map` (``find_marker_map.py``): where each marker of a take
-  sits on a scan, found by a global search from the rest frame, as a :class:`MarkerMap`.
-- :func:`map_markers` (``map_markers.py``): ``facecap map``, the map written as
-  ``map.json`` with its report and picture; :func:`rest_markers_of` prepares the
-  rest frame, :func:`marker_status` names each marker's outcome.
+  sits on a scan, found by a global search from the rest frame, as a :class:`MarkerMap`;
+  :func:`marker_status` names each marker's outcome. :func:`rest_markers_of`
+  (``rest_markers_of.py``) prepares the take's rest frame and motion for it. ``facecap map``'s
+  job, the map written as ``map.json`` with its report and picture, is
+  :func:`facecap.pipelines.map_markers`.
 - :func:`check_marker_map` (``check_marker_map.py``): ``facecap info map.json
   --scan --markers``, a hand-made map checked against the take, as a dict.
 
@@ -59,8 +60,9 @@ from .find_marker_map import (
     UNSURE_SCORE_RATIO,
     MarkerMap,
     find_marker_map,
+    marker_status,
 )
-from .map_markers import MAX_MOTION_FRAMES, map_markers, map_side_files, marker_status, rest_markers_of
+from .rest_markers_of import MAX_MOTION_FRAMES, rest_markers_of
 from .check_marker_map import MAP_CHECK_MM, check_marker_map
 
 __all__ = [
@@ -98,8 +100,6 @@ __all__ = [
     "ALONG_SKIN_FLOOR_MM",
     "ALONG_SKIN_PER_HEIGHT",
     "UNSURE_SCORE_RATIO",
-    "map_markers",
-    "map_side_files",
     "marker_status",
     "rest_markers_of",
     "MAX_MOTION_FRAMES",

@@ -23,9 +23,9 @@ from ..markers.resting_expression import robust_rigid_fit
 from ..structures import MarkerSequence, Mesh
 from ..units import check_take_units
 from ..validate import as_positive
-from .find_marker_map import MIN_MAP_MARKERS, find_marker_map
-from .map_markers import marker_status, rest_markers_of
+from .find_marker_map import MIN_MAP_MARKERS, find_marker_map, marker_status
 from .register_markers_to_scan import scan_winding
+from .rest_markers_of import rest_markers_of
 
 __all__ = ["check_marker_map", "MAP_CHECK_MM"]
 

@@ -27,8 +27,9 @@ from ..validate import as_faces, as_marker_positions, as_points, as_positive, as
 from .register_markers_to_scan import register_markers_to_scan, scan_winding
 from .rigid_icp import ClosestPointSurface, rigid_icp_to_surface
 
-__all__ = ["MarkerMap", "find_marker_map", "MIN_MAP_MARKERS", "DEFAULT_OFF_SKIN_MM", "DEFAULT_AMBIGUITY_MM",
-           "DEFAULT_UNCERTAIN_MM", "UNSURE_SCORE_RATIO", "ALONG_SKIN_FLOOR_MM", "ALONG_SKIN_PER_HEIGHT"]
+__all__ = ["MarkerMap", "find_marker_map", "marker_status", "MIN_MAP_MARKERS", "DEFAULT_OFF_SKIN_MM",
+           "DEFAULT_AMBIGUITY_MM", "DEFAULT_UNCERTAIN_MM", "UNSURE_SCORE_RATIO", "ALONG_SKIN_FLOOR_MM",
+           "ALONG_SKIN_PER_HEIGHT"]
 
 MIN_MAP_MARKERS = 4
 """Fewest markers seen at the rest frame that :func:`find_marker_map` accepts."""
@@ -218,6 +219,28 @@ class MarkerMap(NamedTuple):
         T = np.eye(4)
         T[:3, :3], T[:3, 3] = self.rotation, self.translation
         return T
+
+
+def marker_status(found: MarkerMap) -> list[str]:
+    """Each marker's status as a word: 'placed', 'ambiguous', 'uncertain', 'off the skin', 'past the rim' or 'not seen'.
+
+    A marker both ambiguous and uncertain is 'ambiguous' (the two sheets are the likelier cause).
+    """
+    out = []
+    for k in range(found.placed.size):
+        if found.unseen[k]:
+            out.append("not seen")
+        elif found.off_skin[k]:
+            out.append("off the skin")
+        elif found.past_rim[k]:
+            out.append("past the rim")
+        elif found.ambiguous[k]:
+            out.append("ambiguous")
+        elif found.uncertain[k]:
+            out.append("uncertain")
+        else:
+            out.append("placed")
+    return out
 
 
 def _fibonacci_sphere(n: int) -> FloatArray:

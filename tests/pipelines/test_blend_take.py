@@ -1,31 +1,15 @@
-"""The scan workflow end to end through the CLI, on a small generated take with scanned expressions."""
+"""The scan workflow end to end through the CLI (plan-scans, register-scans, blend), scored against the truth."""
 
 import json
 
 import numpy as np
-import pytest
 
 from facecap.cli import main
 from facecap.markers import rigid_fit
-from facecap.synth import generate_performance, load_ict_sample, write_planned_scans, write_synthetic_case
 
 
-@pytest.fixture(scope="module")
-def workflow(tmp_path_factory):
-    root = tmp_path_factory.mktemp("scans")
-    s = load_ict_sample()
-    case = generate_performance(n_frames=150, seed=21, n_markers=70)
-    files = write_synthetic_case(case, root / "inputs", region_labels=s.region_labels,
-                                 region_names=list(s.region_names))
-    assert main(["-q", "plan-scans", "--markers", str(files.markers), "--out", str(root / "plan.json"),
-                 "--max-scans", "4"]) == 0
-    frames = json.loads((root / "plan.json").read_text())["frames"]
-    scans = [str(p) for p in write_planned_scans(case, frames, root, target_vertices=9000)]
-    return root, case, files, frames, scans
-
-
-def test_plan_register_blend(workflow, capsys):
-    root, case, files, frames, scans = workflow
+def test_plan_register_blend(scan_workflow, capsys):
+    root, case, files, frames, scans = scan_workflow
     plan = json.loads((root / "plan.json").read_text())
     assert (root / "plan.png").is_file()
     errors = plan["error_after_each_mm"]
@@ -119,7 +103,7 @@ def test_the_capture_motion_undoes_the_stabilisation_and_the_blends_pose_correct
 
     from scipy.spatial.transform import Rotation
 
-    from facecap.blendshapes.scan_workflow import _capture_from_stabilized
+    from facecap.pipelines.blend_take import _capture_from_stabilized
 
     rng = np.random.default_rng(5)
     captured = rng.normal(scale=60.0, size=(4, 12, 3))  # four frames of raw markers, mm
@@ -131,45 +115,3 @@ def test_the_capture_motion_undoes_the_stabilisation_and_the_blends_pose_correct
     M = _capture_from_stabilized(SimpleNamespace(head_rotations=S_R, head_translations=S_t), J_R, J_t)
     back = np.einsum("tij,tkj->tki", M[:, :3, :3], face) + M[:, None, :3, 3]
     np.testing.assert_allclose(back, captured, atol=1e-9)
-
-
-def test_bad_inputs_are_clear_errors(workflow, capsys):
-    root, case, files, frames, scans = workflow
-    plan = json.loads((root / "plan.json").read_text())
-    bad_plan = root / "bad_plan.json"
-    bad_plan.write_text(json.dumps({**plan, "frames": [5, 4000]}))
-    args = ["-q", "register-scans", "--markers", str(files.markers), "--template", str(files.scan)]
-    capsys.readouterr()
-    assert main([*args, "--plan", str(bad_plan), "--scans", *scans[:2], "--out", str(root / "x")]) == 2
-    assert "4000" in capsys.readouterr().err
-    assert main([*args, "--plan", str(root / "plan.json"), "--scans", *scans[:-1], "--out", str(root / "x")]) == 2
-    assert "one scan per planned frame" in capsys.readouterr().err
-    assert main([*args, "--plan", str(root / "plan.json"), "--scans", *scans, "--scan-units", "m",
-                 "--out", str(root / "x")]) == 2
-    assert "units" in capsys.readouterr().err
-    assert not (root / "x").exists()
-
-
-def test_the_plan_records_its_head_pose_and_older_plans_replay_theirs(workflow):
-    # plan-scans has no map to tell the head band from the face, so it poses the head by the consensus of
-    # all markers, and says so in plan.json; a plan written before that record existed replays the
-    # most rigid set it was made with, whenever a step has to condition a take afresh
-    import importlib
-
-    from facecap.io import read_markers
-    from facecap.io.conditioned_take import read_conditioned_take
-    from facecap.markers import condition_take
-
-    root, case, files, frames, scans = workflow
-    conditioning = json.loads((root / "plan.json").read_text())["conditioning"]
-    assert conditioning["skin_head_pose"] == "consensus"
-    take = read_markers(files.markers)
-    saved, _ = read_conditioned_take(root / "plan.conditioned.npz")
-    fresh = condition_take(take, stabilize=True, skin_head_pose="consensus")
-    np.testing.assert_allclose(saved.head_rotations, fresh.head_rotations, atol=1e-9)
-    scan_workflow = importlib.import_module("facecap.blendshapes.scan_workflow")
-    older = {k: v for k, v in conditioning.items() if k != "skin_head_pose"}
-    replayed = scan_workflow._condition(take, older)
-    rigid_set = condition_take(take, stabilize=True, skin_head_pose="rigid_set")
-    np.testing.assert_allclose(replayed.head_rotations, rigid_set.head_rotations, atol=1e-12)
-    assert np.abs(replayed.head_rotations - fresh.head_rotations).max() > 1e-4  # the two poses differ

@@ -1,4 +1,4 @@
-"""Tests for facecap.registration.map_markers: the map written as a user holds it, read back, and its report.
+"""Tests for facecap.pipelines.map_markers: the map written as a user holds it, read back, and its report.
 
 The case is written as a studio would hold it (``scan.obj`` in centimetres, ``take.c3d``), read back
 with facecap's readers, mapped, and the written map read with :func:`read_correspondence` is compared
@@ -8,7 +8,6 @@ with the generator's true places.
 from __future__ import annotations
 
 import json
-import warnings
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from matplotlib.image import imread
 from facecap.errors import CorrespondenceError, InputError, MarkerError, MeshError
 from facecap.io import read_correspondence, read_markers, read_mesh
 from facecap.io.read_correspondence import Correspondence
-from facecap.registration import map_markers, map_side_files, rest_markers_of
+from facecap.pipelines import map_markers, map_side_files
 from facecap.synth import write_synthetic_case
 from marker_map_cases import HEADBAND, map_case
 
@@ -122,24 +121,6 @@ def test_bad_input_is_refused_before_anything_is_written(files, tmp_path) -> Non
     with pytest.raises(MarkerError, match="outside the take"):
         map_markers(scan, take, tmp_path / "map.json", rest_frame=take.n_frames)
     assert not any(tmp_path.iterdir())
-
-
-def test_the_rest_frame_is_averaged_and_a_gap_there_is_filled(files) -> None:
-    mc, written = files
-    take = read_markers(written.markers)
-    positions = take.positions.copy()
-    positions[0, 7] = np.nan  # a marker missing at the rest frame
-    gappy = type(take)(positions, take.labels, rate=take.rate, source_unit=take.source_unit)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        rest, motion = rest_markers_of(gappy, 0)
-    noiseless = mc.case.noiseless_markers[0]
-    assert np.isfinite(rest).all() and motion.shape[1:] == positions.shape[1:]
-    assert np.linalg.norm(rest[7] - noiseless[7]) < 1.0
-    # the average over the frames round the rest frame takes out most of the 0.2 mm noise
-    seen = np.arange(len(take.labels)) != 7
-    averaged = np.sqrt(np.mean((rest[seen] - noiseless[seen]) ** 2))
-    assert averaged < 0.6 * np.sqrt(np.mean((take.positions[0, seen] - noiseless[seen]) ** 2))
 
 
 def test_another_persons_markers_are_placed_rigidly_with_a_warning(tmp_path) -> None:

@@ -1,7 +1,7 @@
-"""``facecap map``: a take's markers placed on a scan, written as ``map.json`` with a report and a picture.
+"""``facecap map``'s job: a take's markers placed on a scan, written as ``map.json`` with a report and a picture.
 
 The job reads nothing and parses nothing: it takes a scan and a take, prepares the take's rest frame
-(:func:`rest_markers_of`), runs :func:`~facecap.registration.find_marker_map`, and writes
+(:func:`~facecap.registration.rest_markers_of`), runs :func:`~facecap.registration.find_marker_map`, and writes
 
 - ``map.json``: ``{"units": <the scan file's unit>, "markers": {label: [x, y, z], ...}}``, each marker's
   place on the skin as a point in the scan file's unit, in the take's marker order; the form
@@ -24,101 +24,31 @@ from __future__ import annotations
 import json
 import os
 import time
-import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ..markers.prepare_take import DEFAULT_REST_AVERAGE_S, rest_average
-from ..errors import CorrespondenceError, FacecapWarning, MarkerError
+from ..errors import CorrespondenceError, MarkerError
 from ..io.atomic_write import atomic_write_text, check_file_destination, recorded_path
 from ..io.read_correspondence import Correspondence
-from ..markers.condition_take import condition_take
+from ..markers.prepare_take import DEFAULT_REST_AVERAGE_S
 from ..markers.rigid_fit import rigid_fit
+from ..registration.find_marker_map import (DEFAULT_OFF_SKIN_MM, MIN_MAP_MARKERS, MarkerMap, find_marker_map,
+                                            marker_status)
+from ..registration.rest_markers_of import rest_markers_of
 from ..structures import MarkerSequence, Mesh
 from ..typing import FloatArray
 from ..units import check_scan_units, mm_per_unit
 from ..validate import as_positive
-from .find_marker_map import DEFAULT_OFF_SKIN_MM, MIN_MAP_MARKERS, MarkerMap, find_marker_map
 
-__all__ = ["map_markers", "rest_markers_of", "marker_status", "map_side_files", "MAX_MOTION_FRAMES"]
-
-MAX_MOTION_FRAMES = 1200
-"""Frames of the take (evenly spaced, the rest frame among them) whose motion gives the directions the
-markers may follow back to the scan's expression; more add time, not directions."""
+__all__ = ["map_markers", "map_side_files"]
 
 
 def map_side_files(out: str | os.PathLike[str]) -> tuple[Path, Path]:
     """The report and the picture written beside a map: ``map.json`` -> ``map_report.json``, ``map.png``."""
     path = Path(os.fspath(out))
     return path.with_name(f"{path.stem}_report.json"), path.with_name(f"{path.stem}.png")
-
-
-def rest_markers_of(take: MarkerSequence, rest_frame: int) -> tuple[FloatArray, FloatArray]:
-    """The take's rest-frame markers and its head-stabilised motion, as :func:`find_marker_map` takes them.
-
-    Parameters
-    ----------
-    take : MarkerSequence
-        The take, every marker.
-    rest_frame : int
-        The frame whose expression is nearest the scan's.
-
-    Returns
-    -------
-    rest : (M, 3) float64 array, mm
-        The rest frame averaged with its neighbours (each moved rigidly onto it:
-        :func:`~facecap.markers.prepare_take.rest_average`, the half-width
-        ``animate`` uses); a marker missing there is taken from the gap-filled
-        take, NaN if it cannot be filled.
-    motion : (T', M, 3) float64 array, mm
-        At most :data:`MAX_MOTION_FRAMES` frames, evenly spaced and holding the
-        rest frame, gap-filled and head-stabilised onto the rest frame
-        (:func:`~facecap.markers.condition_take`, ``stabilize=True``, unfiltered).
-
-    Raises
-    ------
-    MarkerError
-        If ``rest_frame`` is outside the take.
-    """
-    T = take.n_frames
-    if not (isinstance(rest_frame, (int, np.integer)) and 0 <= rest_frame < T):
-        raise MarkerError(f"--rest-frame {rest_frame} is outside the take (0..{T - 1})", path=take.source_path)
-    stride = max(1, int(np.ceil(T / MAX_MOTION_FRAMES)))
-    frames = np.arange(rest_frame % stride, T, stride)
-    sampled = MarkerSequence(take.positions[frames], take.labels, rate=take.rate / stride,
-                             source_unit=take.source_unit, source_path=take.source_path)
-    with warnings.catch_warnings():  # "left unstabilised" is news for animate, not for a map: a still head is fine
-        warnings.simplefilter("ignore", FacecapWarning)
-        conditioned = condition_take(sampled, rest_frame=rest_frame // stride, stabilize=True, smooth=False)
-    motion = conditioned.positions
-    rest = rest_average(take.positions, rest_frame, DEFAULT_REST_AVERAGE_S * take.rate)
-    missing = ~np.isfinite(rest).all(axis=1)
-    rest[missing] = motion[rest_frame // stride, missing]
-    return rest, motion
-
-
-def marker_status(found: MarkerMap) -> list[str]:
-    """Each marker's status as a word: 'placed', 'ambiguous', 'uncertain', 'off the skin', 'past the rim' or 'not seen'.
-
-    A marker both ambiguous and uncertain is 'ambiguous' (the two sheets are the likelier cause).
-    """
-    out = []
-    for k in range(found.placed.size):
-        if found.unseen[k]:
-            out.append("not seen")
-        elif found.off_skin[k]:
-            out.append("off the skin")
-        elif found.past_rim[k]:
-            out.append("past the rim")
-        elif found.ambiguous[k]:
-            out.append("ambiguous")
-        elif found.uncertain[k]:
-            out.append("uncertain")
-        else:
-            out.append("placed")
-    return out
 
 
 def _landmark_start(rest: FloatArray, labels: tuple[str, ...], landmarks: Correspondence, V: FloatArray,

@@ -1,0 +1,107 @@
+"""``facecap register-scans``'s job: one scan per planned frame in one topology, written as a bases folder.
+
+The plan and the take read, the take conditioned as the plan did
+(:func:`~facecap.pipelines.replay_conditioning`), the scans read and their units checked against
+their frames' markers, the registration run (:func:`~facecap.registration.register_scans`,
+Huang et al. 2011, sections 5-7), and the bases folder written (:mod:`facecap.io.registered_scans`).
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any, Sequence
+
+from ..errors import InputError
+from ..io.atomic_write import check_folder_destination, recorded_path
+from ..io.read_markers import read_markers
+from ..io.read_mesh import read_mesh
+from ..io.registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, write_registered_scans
+from ..io.scan_plan import read_scan_plan
+from ..structures import Mesh
+from ..units import check_scan_units
+from .plan_scans import conditioned_take_path
+from .replay_conditioning import replay_conditioning
+
+__all__ = ["register_planned_scans"]
+
+
+def register_planned_scans(
+    plan_path: str | Path,
+    markers_path: str | Path,
+    scan_paths: Sequence[str | Path],
+    out_dir: str | Path,
+    *,
+    template_path: str | Path | None = None,
+    scan_unit: str = "mm",
+    template_unit: str = "mm",
+    marker_offset_mm: float = 1.5,
+    refine: bool = False,
+    template_texture_path: str | Path | None = None,
+    align_colors: bool = False,
+    marker_unit: str | None = None,
+    progress: bool = True,
+    overwrite: bool = False,
+) -> dict[str, Any]:
+    """Register one scan per planned frame and write the bases folder.
+
+    With ``align_colors`` the registrations are slid along the scans until
+    the skin's colours match the template's (the scans and the template, or
+    ``template_texture_path``, a coloured scan of the template's expression
+    in the template's unit, need vertex colours), see
+    :func:`facecap.registration.register_scans`.
+
+    ``scan_unit`` and ``template_unit`` are length units, or ``'auto'``: each
+    file's size is compared with its frame's markers
+    (:func:`facecap.units.check_scan_units`); a given unit they contradict
+    stops with an error naming the likely one, ``'auto'`` converts to it.
+
+    An earlier bases folder in ``out_dir`` is replaced only with
+    ``overwrite`` (checked before the registration and again at the end).
+    Returns the registration report (also in ``bases.json``, with every
+    scan's path as recorded there: final and absolute, or relative to the folder).
+    """
+    from ..registration.register_scans import register_scans
+
+    check_folder_destination(out_dir, marker_file=BASES_MARKER_FILE, overwrite=overwrite)
+    take = read_markers(markers_path, unit=marker_unit)
+    plan = read_scan_plan(plan_path, n_frames=take.n_frames)
+    frames = plan["frames"]
+    if len(scan_paths) != len(frames):
+        raise InputError(f"--scans: the plan lists {len(frames)} frames, {len(scan_paths)} scans were given "
+                         "(one scan per planned frame, in the plan's order)")
+    conditioning = plan["conditioning"]
+    conditioned = replay_conditioning(take, conditioning, markers_path=markers_path,
+                                      saved=conditioned_take_path(plan_path))
+    auto, auto_template = scan_unit == "auto", template_unit == "auto"  # else a contradicted unit stops
+    scans = [check_scan_units(read_mesh(p, unit=None if auto else scan_unit), conditioned.positions[f], convert=auto)
+             for p, f in zip(scan_paths, frames)]
+    template: Mesh | None = check_scan_units(
+        read_mesh(template_path, unit=None if auto_template else template_unit),
+        conditioned.positions[int(conditioning.get("rest_frame", 0))], convert=auto_template, option="--template-units",
+    ) if template_path else None
+    texture = None
+    if template_texture_path is not None:
+        if template is None:
+            raise InputError("--template-texture needs --template (without one the first scan is the template)")
+        texture = read_mesh(template_texture_path, unit=template.source_unit)
+    t = time.perf_counter()
+    registered = register_scans(
+        scans, conditioned.positions[frames], template=template,
+        template_markers=conditioned.positions[int(conditioning.get("rest_frame", 0))] if template else None,
+        marker_offset_mm=marker_offset_mm, refine=refine, template_texture=texture, align_colors=align_colors,
+        progress=progress,
+    )
+    report = {**registered.report, "total_s": time.perf_counter() - t,
+              "registration_mm": registered.registration_mm.tolist()}
+    for entry, path in zip(report.get("scans", []), scan_paths):
+        entry["scan"] = recorded_path(path, folder=out_dir)
+    # the plan as the bases saw it; its conditioned take is the one kept in the bases folder
+    plan = {**plan, "markers": recorded_path(markers_path, folder=out_dir),
+            "conditioning": {**conditioning, "conditioned_take": CONDITIONED_TAKE_FILE}}
+    write_registered_scans(
+        out_dir, template=registered.template, bases=registered.bases, basis_markers=registered.basis_markers,
+        marker_labels=list(take.labels), output_from_mocap=registered.output_from_mocap,
+        plan=plan, report=report, conditioned=conditioned, rate=take.rate, overwrite=overwrite,
+    )
+    return report
