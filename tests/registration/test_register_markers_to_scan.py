@@ -17,7 +17,8 @@ from facecap.blendshapes.select_scan_frames import select_scan_frames
 from facecap.errors import InputError, MarkerError, MeshError
 from facecap.registration import MarkerRegistration, register_markers_to_scan
 from facecap.structures import Mesh
-from facecap.synth.generate_performance import SyntheticCase, generate_performance, vertex_normals_at
+from facecap.mesh.vertex_normals import vertex_normals
+from facecap.synth.generate_performance import SyntheticCase, generate_performance
 from facecap.synth.scan_expression import ScannedExpression, scan_expression
 
 OFFSET = 1.5
@@ -135,7 +136,7 @@ def test_subspace_deformation_registers_a_different_expression(case) -> None:
 def test_skin_points_are_under_the_markers_along_the_smooth_normal(case) -> None:
     """A marker 1.5 mm above a coarse face's crease: its closest point lands aside, its foot does not."""
     V, F, mv = case.scan.vertices, case.scan.faces, case.marker_vertices
-    centres = V[mv] + OFFSET * vertex_normals_at(V, F, mv)  # the generator's model: along the vertex normal
+    centres = V[mv] + OFFSET * vertex_normals(V, F, mv)  # the generator's model: along the vertex normal
     _, _, closest = igl.point_mesh_squared_distance(centres, V, F)
     assert np.linalg.norm(closest - V[mv], axis=1).max() > 0.3  # the case is not trivial
     reg = register_markers_to_scan(centres, case.scan, init=np.eye(4), marker_offset_mm=OFFSET)

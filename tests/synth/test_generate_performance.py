@@ -6,11 +6,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError
-from facecap.synth.generate_performance import (
-    SyntheticCase,
-    generate_performance,
-    vertex_normals_at,
-)
+from facecap.mesh.vertex_normals import vertex_normals
+from facecap.synth.generate_performance import SyntheticCase, generate_performance
 from facecap.synth.ict_sample import load_ict_sample
 from facecap.synth.marker_layout import animface_marker_map, boundary_vertices
 
@@ -42,17 +39,6 @@ def test_frame_zero_is_the_scan_and_truth_follows_the_weights(case):
         expected = case.scan.vertices + np.tensordot(case.weights[t], s.expression_deltas, axes=1)
         np.testing.assert_allclose(case.truth_vertices[t], expected, atol=2e-4)
     assert case.weights.max() > 0.5  # a real performance, not a twitch
-
-
-def test_vertex_normals_match_libigl_area_weighted_normals(case):
-    F = case.scan.faces
-    mv = case.marker_vertices
-    frames = case.truth_vertices[[0, 77, 150]].astype(np.float64)
-    ours = vertex_normals_at(frames, F, mv)
-    for k, V in enumerate(frames):
-        ref = igl.per_vertex_normals(V, F, igl.PER_VERTEX_NORMALS_WEIGHTING_TYPE_AREA)[mv]
-        np.testing.assert_allclose(ours[k], ref, atol=1e-9)
-        np.testing.assert_allclose(vertex_normals_at(V, F, mv), ref, atol=1e-9)
 
 
 def test_markers_are_the_truth_plus_offset_seen_through_head_and_mocap_frames(case):
@@ -158,7 +144,7 @@ def test_other_layouts_identity_and_mocap_frame():
     # no head motion: frame 0 markers are X applied to the scan points 1.5 mm along the scan normals
     # (the truth, and so the markers, come from the scan rounded to float32)
     V32 = a.scan.vertices.astype(np.float32).astype(np.float64)
-    N = vertex_normals_at(V32, a.scan.faces, chosen)
+    N = vertex_normals(V32, a.scan.faces, chosen)
     expected = (V32[chosen] + 1.5 * N) @ X[:3, :3].T + X[:3, 3]
     np.testing.assert_allclose(a.markers.positions[0, :3], expected, atol=1e-9)
     named = generate_performance(n_frames=5, marker_layout={"chin": 963, "nose": 1307}, headband_markers=2)

@@ -6,7 +6,7 @@ import pytest
 from facecap.errors import InputError
 from facecap.io import read_markers
 from facecap.markers import condition_take, rigid_fit
-from facecap.synth.generate_performance import vertex_normals_at
+from facecap.mesh.vertex_normals import vertex_normals
 from facecap.synth.ict_sample import bundled_path, load_ict_sample
 from facecap.synth.marker_layout import animface_marker_map
 from facecap.synth.real_motion_curves import REAL_CURVE_NAMES, load_real_curve_fit, real_motion_curves
@@ -24,7 +24,7 @@ def test_stored_fit_explains_the_real_take_far_better_than_no_motion():
     P = condition_take(take, stabilize=True).positions[:, [index[k] for k in m]]
     mv = np.array(list(m.values()))
     V, F = s.mesh.vertices, s.mesh.faces
-    align = rigid_fit(P[0], V[mv] + 1.5 * vertex_normals_at(V, F, mv))
+    align = rigid_fit(P[0], V[mv] + 1.5 * vertex_normals(V, F, mv))
     D = align.apply(P) - align.apply(P[:1])
     model = np.tensordot(fit.weights, s.expression_deltas[:, mv], axes=1)
     rms = float(np.sqrt(np.mean(np.sum((model - D) ** 2, axis=2))))

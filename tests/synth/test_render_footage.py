@@ -8,7 +8,7 @@ import pytest
 
 from facecap.cameras import Camera, ray_cast
 from facecap.errors import InputError
-from facecap.synth import vertex_normals_at
+from facecap.mesh.vertex_normals import vertex_normals
 from facecap.synth.render_footage import FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from facecap.synth.wrinkles import WrinkleCurves, add_wrinkles
 
@@ -78,7 +78,7 @@ def test_ambient_occlusion_equals_the_2d_visible_wedge_integral_across_a_long_va
     row = np.flatnonzero(V[:, 0] == 0.0)
     row = row[np.argsort(V[row, 1])]
     y, h = V[row, 1], W[row, 2]
-    N = vertex_normals_at(W, F, row)
+    N = vertex_normals(W, F, row)
     errors = []
     for j in np.flatnonzero(np.abs(y) <= 6.0):
         dy, dh = y - y[j], h - h[j]

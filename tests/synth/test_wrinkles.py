@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from facecap.errors import InputError
-from facecap.synth import load_ict_sample, vertex_normals_at
+from facecap.mesh.vertex_normals import vertex_normals
+from facecap.synth import load_ict_sample
 from facecap.synth.wrinkle_scan import subdivide_scan
 from facecap.synth.wrinkles import (INFLUENCE_WIDTHS, WRINKLE_KINDS, add_wrinkles, place_wrinkles,
                                     wrinkle_activation, wrinkle_expression_curves, wrinkle_profile)
@@ -94,7 +95,7 @@ def test_displacement_along_the_normals_and_zero_outside_the_mask():
     np.testing.assert_array_equal(moved[:, ~out.mask], 0.0)
     assert np.all(out.heights[:, ~out.mask] == 0.0)
     inside = np.flatnonzero(out.mask)
-    N = vertex_normals_at(large[1].astype(np.float64), fine.mesh.faces, inside)
+    N = vertex_normals(large[1].astype(np.float64), fine.mesh.faces, inside)
     np.testing.assert_allclose(moved[1, inside], out.heights[1, inside, None] * N, atol=2e-5)  # float32 storage at ~100 mm
     # every vertex farther than INFLUENCE_WIDTHS widths from all valley lines is outside the mask
     from scipy.spatial import cKDTree

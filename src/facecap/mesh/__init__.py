@@ -7,6 +7,8 @@ In the order a user meets them:
 - :func:`connected_pieces` (``connected_pieces.py``): which vertices belong together.
 - :func:`facing_outward` (``facing_outward.py``): whether a surface's triangles
   face away from it (outward winding) or into it, from its geometry alone.
+- :func:`face_normals`, :func:`vertex_normals` (``vertex_normals.py``): normals
+  of one frame or a stack, everywhere or at a few vertices (area-weighted).
 - :func:`weld_duplicate_vertices` (``weld_duplicate_vertices.py``): one vertex
   per position across UV seams, as a :class:`WeldedMesh`.
 - :func:`laplace_operators` (``laplacian.py``): cotangent Laplacian and mixed
@@ -34,6 +36,7 @@ from .laplacian import LaplaceOperators, laplace_operators
 from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
 from .review_mesh import ReviewMesh, review_mesh
+from .vertex_normals import face_normals, vertex_normals
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
 
 __all__ = [
@@ -54,4 +57,6 @@ __all__ = [
     "DEFAULT_FEATURE_THRESHOLD",
     "review_mesh",
     "ReviewMesh",
+    "face_normals",
+    "vertex_normals",
 ]

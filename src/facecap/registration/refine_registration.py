@@ -14,6 +14,7 @@ from ..mesh.factor_spd import Backend, SpdFactor
 from ..errors import InputError
 from ..mesh.laplacian import laplace_operators
 from ..mesh.mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
+from ..mesh.vertex_normals import face_normals
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
@@ -568,7 +569,7 @@ def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, 
             on_scan: BoolArray, backend: Backend) -> FloatArray:
     """Eq. 11 (confidence-weighted) plus user constraints, then back onto the scan, without flipping triangles."""
     n = V.shape[0]
-    before = _face_normals(V, F)
+    before = face_normals(V, F)
     area = np.linalg.norm(before, axis=1)
     sound = area > 1e-12 * max(float(np.median(area)), 1e-300)
     L = _clamped_laplacian(V, F[sound], n)
@@ -587,7 +588,7 @@ def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, 
     try:
         for attempt in range(_MAX_BACKTRACKS + 1):
             W = _snap(factor.solve(base + confidence[:, None] * (V + step[:, None] * dv)), tree, scan, on_scan)
-            flipped = sound & (np.einsum("ij,ij->i", before, _face_normals(W, F)) < 0)
+            flipped = sound & (np.einsum("ij,ij->i", before, face_normals(W, F)) < 0)
             if not flipped.any():
                 return W
             # drop the update around the flipped triangles (their vertices and two rings) and solve again
@@ -604,7 +605,7 @@ def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, 
         W[stuck] = V[stuck]
         touched = np.flatnonzero(vertex_faces[stuck].sum(axis=0).A1 > 0)
         flipped = np.zeros(F.shape[0], dtype=bool)
-        flipped[touched] = sound[touched] & (np.einsum("ij,ij->i", before[touched], _face_normals(W, F[touched])) < 0)
+        flipped[touched] = sound[touched] & (np.einsum("ij,ij->i", before[touched], face_normals(W, F[touched])) < 0)
         if not flipped.any():
             return W
     return V
@@ -620,15 +621,6 @@ def _clamped_laplacian(V: FloatArray, F: IntArray, n: int) -> sp.csr_matrix:
     rows, cols = L.row[off], L.col[off]
     W = sp.csr_matrix((w, (rows, cols)), shape=(n, n))
     return (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
-
-
-def _face_normals(V: FloatArray, F: IntArray) -> FloatArray:
-    """(m, 3) unnormalised face normals (twice the area)."""
-    a, b, c = V[F[:, 0]], V[F[:, 1]], V[F[:, 2]]
-    u, v = b - a, c - a
-    return np.stack([u[:, 1] * v[:, 2] - u[:, 2] * v[:, 1],
-                     u[:, 2] * v[:, 0] - u[:, 0] * v[:, 2],
-                     u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]], axis=1)
 
 
 def _snap(W: FloatArray, tree: Any, scan: tuple[FloatArray, IntArray], on_scan: BoolArray) -> FloatArray:

@@ -7,7 +7,7 @@ In the order a user meets them:
 - :func:`generate_performance` (``generate_performance.py``): a take with
   dense ground truth, as a :class:`SyntheticCase`; :func:`named_curves` picks
   one of the :data:`CURVE_GENERATORS`, :data:`HEAD_PIVOTS_MM` are the head
-  pivots, :func:`vertex_normals_at` is the normal helper it uses;
+  pivots (the normals it lifts markers along: :func:`facecap.mesh.vertex_normals`);
   :func:`rotational_jaw_correction`, :func:`fit_jaw_screw`, :class:`JawScrew`,
   :data:`ICT_JAW_SCREW`, :data:`JAW_MODES` (``rotational_jaw.py``) make its ``jaw='rotational'``
   (the jaw opening along its arc instead of the blendshape's straight lines);
@@ -60,7 +60,6 @@ from .generate_performance import (
     named_curves,
     random_identity,
     RANDOM_IDENTITY_SD,
-    vertex_normals_at,
 )
 from .capture_colors import capture_colors, srgb_decode, srgb_encode
 from .ict_sample import IctSample, bundled_path, load_ict_sample
@@ -91,7 +90,6 @@ __all__ = [
     "named_curves",
     "CURVE_GENERATORS",
     "HEAD_PIVOTS_MM",
-    "vertex_normals_at",
     "random_rest_expression",
     "RESTING_SHAPES",
     "as_rest_weights",

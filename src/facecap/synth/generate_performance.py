@@ -8,13 +8,13 @@ from typing import Any
 
 import igl
 import numpy as np
-import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
 from ..errors import InputError
+from ..mesh.vertex_normals import vertex_normals
 from ..structures import MarkerSequence, Mesh
 from ..typing import FloatArray, IntArray
-from ..validate import as_count, as_faces, as_positive, as_rigid_transform
+from ..validate import as_count, as_positive, as_rigid_transform
 from .expression_curves import _smoothstep, smooth_expression_curves
 from .ict_sample import IctSample, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
@@ -24,7 +24,7 @@ from .rotational_jaw import ICT_JAW_SCREW, JAW_MODES, JAW_SHAPE, rotational_jaw_
 from .speech_curves import speech_expression_curves
 
 __all__ = ["CURVE_GENERATORS", "HEAD_PIVOTS_MM", "SyntheticCase", "generate_performance", "named_curves",
-           "vertex_normals_at", "random_identity", "RANDOM_IDENTITY_SD"]
+           "random_identity", "RANDOM_IDENTITY_SD"]
 
 DEFAULT_FRAMES = 240
 DEFAULT_MARKERS = 90
@@ -116,65 +116,6 @@ class SyntheticCase:
         return self.markers.labels[self.n_face_markers :]
 
 
-def vertex_normals_at(V: np.ndarray, F: IntArray, vertices: IntArray) -> FloatArray:
-    """Area-weighted unit vertex normals at some vertices, for one or many frames.
-
-    Only the triangles around ``vertices`` are evaluated, so asking for a
-    hundred markers on a long take is cheap.
-
-    Parameters
-    ----------
-    V : (n, 3) or (T, n, 3) float array, mm
-        Vertex positions (one frame or a stack).
-    F : (m, 3) int64 array
-        Triangles, consistently oriented.
-    vertices : (k,) int64 array
-        Where the normals are wanted.
-
-    Returns
-    -------
-    (k, 3) or (T, k, 3) float64 array
-        Unit normals; a vertex with no (or only degenerate) triangles gets NaN.
-
-    Notes
-    -----
-    ``n(v) = normalize(sum_{f ∋ v} (x_1 - x_0) × (x_2 - x_0))``: the sum of the
-    incident face normals weighted by twice their areas.
-
-    Examples
-    --------
-    >>> V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
-    >>> vertex_normals_at(V, np.array([[0, 1, 2]]), np.array([0])).tolist()
-    [[0.0, 0.0, 1.0]]
-    """
-    X = np.asarray(V)
-    n = X.shape[-2]
-    F = as_faces(F, n)
-    vertices = np.asarray(vertices, dtype=np.int64)
-    if vertices.ndim != 1 or (vertices.size and (vertices.min() < 0 or vertices.max() >= n)):
-        raise InputError(f"vertices: expected 1-D vertex indices in 0..{n - 1}")
-    row = np.full(n, -1, dtype=np.int64)
-    row[vertices] = np.arange(vertices.size)
-    Fi = F[(row[F] >= 0).any(axis=1)]
-    used, local = np.unique(Fi, return_inverse=True)
-    local = local.reshape(Fi.shape)
-    P = X[..., used, :].astype(np.float64)
-    a, b, c = P[..., local[:, 0], :], P[..., local[:, 1], :], P[..., local[:, 2], :]
-    face_normals = np.cross(b - a, c - a)  # (..., f, 3)
-    r = row[Fi].ravel()
-    keep = r >= 0
-    S = sp.csr_matrix(
-        (np.ones(int(keep.sum())), (r[keep], np.repeat(np.arange(Fi.shape[0]), 3)[keep])),
-        shape=(vertices.size, Fi.shape[0]),
-    )
-    lead = face_normals.shape[:-2]
-    flat = np.moveaxis(face_normals, -2, 0).reshape(Fi.shape[0], -1)
-    N = np.moveaxis((S @ flat).reshape((vertices.size, *lead, 3)), 0, -2)
-    length = np.linalg.norm(N, axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(length > 0, N / length, np.nan)
-
-
 def _smooth_signals(rng: np.random.Generator, n_frames: int, rate: float, n: int) -> tuple[FloatArray, FloatArray]:
     """(T, n) smooth signals, 0 at frame 0: sums of 3 slow sinusoids (0.1-0.6 Hz) each.
 
@@ -257,7 +198,7 @@ def _headband(sample: IctSample, scan: Mesh, count: int, rng: np.random.Generato
         d = np.minimum(d, np.linalg.norm(V[band] - V[picks[-1]], axis=1))
         picks.append(int(band[np.argmax(d)]))
     picks = np.asarray(picks[1:], dtype=np.int64)  # drop the random seed point, keep the spread ones
-    N = vertex_normals_at(V, scan.faces, picks)
+    N = vertex_normals(V, scan.faces, picks)
     return V[picks] + HEADBAND_OFFSET_MM * N
 
 
@@ -267,7 +208,7 @@ def _layout(marker_layout: Any, n_markers: int | None, sample: IctSample, scan: 
     if marker_layout is None:
         count = DEFAULT_MARKERS if n_markers is None else n_markers
         # markers go on the front of the face: not on the ears, scalp or neck, nor under the chin
-        normals = vertex_normals_at(scan.vertices, scan.faces, np.arange(n))
+        normals = vertex_normals(scan.vertices, scan.faces, np.arange(n))
         exclude = (sample.region_labels == sample.region_names.index("other")) | (normals[:, 1] < -0.6)
         mv = choose_marker_vertices(scan.vertices, scan.faces, sample.expression_deltas, count,
                                     seed=seed, exclude=exclude)
@@ -569,7 +510,7 @@ def generate_performance(
         truth += rotational_jaw_correction(V0, sample.expression_deltas[k], W[:, k], ICT_JAW_SCREW).astype(np.float32)
 
     skin = truth[:, mv].astype(np.float64)
-    face_points = skin + offset * vertex_normals_at(truth, F, mv) if offset > 0 else skin
+    face_points = skin + offset * vertex_normals(truth, F, mv) if offset > 0 else skin
     points = np.concatenate([face_points, np.broadcast_to(band, (T, band.shape[0], 3))], axis=1)
 
     pivot = V0[sample.landmarks[8]] + np.array(HEAD_PIVOTS_MM[head_pivot])  # from the chin
@@ -625,7 +566,7 @@ def _picked_points(V: FloatArray, F: IntArray, vertices: IntArray, error_mm: flo
     The offset is taken in the tangent plane of the vertex normal and the result is put back on the
     surface by its closest point, as a user's click on the scan would land.
     """
-    N = vertex_normals_at(V, F, vertices)
+    N = vertex_normals(V, F, vertices)
     step = rng.normal(scale=error_mm, size=(vertices.size, 3))
     step -= np.einsum("kd,kd->k", step, N)[:, None] * N
     _, _, C = igl.point_mesh_squared_distance(V[vertices] + step, V, F)

@@ -25,7 +25,7 @@ from .._threads import available_cores
 from ..errors import InputError
 from ..typing import FloatArray, IntArray
 from ..validate import as_faces, as_vertices
-from .generate_performance import vertex_normals_at
+from ..mesh.vertex_normals import vertex_normals
 
 __all__ = ["FootageRenderer", "ambient_occlusion", "sensor_noise", "quantize", "SENSOR_DEFAULTS"]
 
@@ -93,7 +93,7 @@ def ambient_occlusion(
     V = as_vertices(V, name="V")
     F = as_faces(F, V.shape[0], name="F")
     n = V.shape[0]
-    N = vertex_normals_at(V, F, np.arange(n))
+    N = vertex_normals(V, F, np.arange(n))
     N = np.where(np.isfinite(N), N, [0.0, 0.0, 1.0])
     helper = np.where(np.abs(N[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     tangent = np.cross(N, helper)

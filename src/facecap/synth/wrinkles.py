@@ -21,7 +21,7 @@ from ..errors import InputError
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
 from .expression_curves import EXPRESSION_PRESETS, _smoothstep
-from .generate_performance import vertex_normals_at
+from ..mesh.vertex_normals import vertex_normals
 from .ict_sample import IctSample
 
 __all__ = ["WrinkleCurves", "WrinkledPerformance", "WRINKLE_KINDS", "INFLUENCE_WIDTHS", "WRINKLE_EXPRESSIONS",
@@ -546,11 +546,11 @@ def add_wrinkles(
     for t0 in range(0, T, batch_frames):
         block = X[t0 : t0 + batch_frames].astype(np.float64)
         if moving.size:
-            N = vertex_normals_at(block, faces, moving)
+            N = vertex_normals(block, faces, moving)
             lift = heights[t0 : t0 + batch_frames, moving, None] * N
             vertices[t0 : t0 + batch_frames, moving] += lift.astype(np.float32)
         # the valley line on the wrinkled surface: large-scale point, minus the depth along the smooth normal
-        Nc = vertex_normals_at(block, faces, np.unique(corner))
+        Nc = vertex_normals(block, faces, np.unique(corner))
         row = np.full(n, -1)
         row[np.unique(corner)] = np.arange(np.unique(corner).size)
         b = curves.barycentric.reshape(-1, 3)

@@ -14,7 +14,8 @@ from ..io.atomic_write import atomic_path, atomic_write_text
 from ..io.write_markers import write_markers
 from ..io.write_mesh import write_mesh
 from ..typing import FloatArray
-from .generate_performance import SyntheticCase, generate_performance, vertex_normals_at
+from ..mesh.vertex_normals import vertex_normals
+from .generate_performance import SyntheticCase, generate_performance
 from .ict_sample import IctSample, load_ict_sample
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from .skin_albedo import SkinRegions, skin_albedo
@@ -170,7 +171,7 @@ def _render_frames(render: SubdividedScan, scan_faces: np.ndarray, large: np.nda
         V = S @ X
         V[:n] = wrinkled[t]
         if moving.size:
-            normals = carry @ vertex_normals_at(X, scan_faces, support)
+            normals = carry @ vertex_normals(X, scan_faces, support)
             normals /= np.linalg.norm(normals, axis=1, keepdims=True)
             V[moving] += heights[row[int(t)]][:, None] * normals
         return V

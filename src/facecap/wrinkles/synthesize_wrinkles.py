@@ -38,6 +38,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
+from ..mesh.vertex_normals import face_normals
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_faces, as_vertices
 from .cross_section import cross_section
@@ -102,7 +103,7 @@ def smoothed_normals(V: Any, F: Any, *, iterations: int = 3, vertices: Any = Non
         for _ in range(iterations + 1):
             near[F[near[F].any(axis=1)].ravel()] = True
         F = F[near[F].all(axis=1)]
-    n_face = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+    n_face = face_normals(V, F)
     N = np.zeros_like(V)
     for i in range(3):
         np.add.at(N, F[:, i], n_face)
