@@ -960,7 +960,7 @@ def _add_edit_muscles(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_edit_muscles(args: argparse.Namespace) -> int:
     from .io.export_result import parse_export_formats
-    from .muscles import edit_muscles
+    from .pipelines import edit_muscles
 
     exports = parse_export_formats(args.export)  # before any long work
     if args.sphere_to is not None and args.sphere is None:

@@ -29,10 +29,11 @@ In the order the solver uses them:
   ``facecap solve-muscles`` does: model folder, take and map in, a result folder like
   ``animate``'s out, plus :data:`ACTIVATIONS_FILE` and :data:`BONE_TRANSFORMS_FILE`
   (:func:`write_muscle_result`, the writer ``edit-muscles`` shares).
-- :class:`MuscleEditor`, :func:`interpolate_controls`, :func:`edit_muscles` (``edit_muscles.py``):
-  editing in muscle space (sec. 9), what ``facecap edit-muscles`` does: two frames interpolated
-  in activation and bone space, an expression exaggerated by scaling the force-length curves, a
-  kinematic sphere pressing on the face; each frame a quasistatic solve.
+- :class:`MuscleEditor`, :func:`interpolate_controls`, :func:`interpolate_rigid_motions`
+  (``muscle_editor.py``): editing in muscle space (sec. 9), what ``facecap edit-muscles``
+  (:func:`facecap.pipelines.edit_muscles`) solves: two frames interpolated in activation and bone
+  space, an expression exaggerated by scaling the force-length curves, a kinematic sphere pressing
+  on the face; each frame a quasistatic solve.
 
 Units: mm, radians; see ``docs/muscles.md``.
 """
@@ -50,18 +51,17 @@ from .solve_muscles import MuscleTake, solve_muscles
 from .muscle_frame_stage import FRAME_FLAG_MEANINGS, FRAME_FLAGS, MuscleFrameStage, flag_names, model_folder_sha256
 from .solve_muscle_take import (ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, RIGID_FIT_LIMIT_MM, MuscleTakeResult,
                                 solve_muscle_take, write_muscle_result)
-from .edit_muscles import (DEFAULT_PENETRATION_TOLERANCE_MM, EDIT_METHOD, EditedFrame, MuscleEditResult, MuscleEditor,
-                           SphereReport, edit_muscles, interpolate_controls)
+from .muscle_editor import (DEFAULT_INTERPOLATION_FRAMES, DEFAULT_PENETRATION_TOLERANCE_MM, EditedFrame, MuscleEditor,
+                            SphereReport, interpolate_controls, interpolate_rigid_motions)
 
 __all__ = [
+    "DEFAULT_INTERPOLATION_FRAMES",
     "DEFAULT_PENETRATION_TOLERANCE_MM",
-    "EDIT_METHOD",
     "EditedFrame",
-    "MuscleEditResult",
     "MuscleEditor",
     "SphereReport",
-    "edit_muscles",
     "interpolate_controls",
+    "interpolate_rigid_motions",
     "ACTIVATIONS_FILE",
     "BONE_TRANSFORMS_FILE",
     "RIGID_FIT_LIMIT_MM",

@@ -9,10 +9,12 @@ calls the solver packages (arrays in, arrays out), and writes the result through
   a result folder, as an :class:`AnimationResult`.
 - :func:`capture_wrinkles` (``capture_wrinkles.py``): ``facecap wrinkles``, the wrinkle layer
   (section 5) over a whole take on the frame runner, as a :class:`WrinkleCapture`.
+- :func:`edit_muscles` (``edit_muscles.py``): ``facecap edit-muscles``, a ``solve-muscles`` result
+  edited in muscle space (Sifakis et al. 2005, sec. 9) and written as a new result folder, as a
+  :class:`MuscleEditResult` (its ``performance.json`` says :data:`EDIT_METHOD`).
 
 The other commands' jobs still live in their solver packages (issue 29): ``blend`` and the scan
-workflow in :mod:`facecap.blendshapes`, ``solve-muscles`` and ``edit-muscles`` in
-:mod:`facecap.muscles`.
+workflow in :mod:`facecap.blendshapes`, ``solve-muscles`` in :mod:`facecap.muscles`.
 
 The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
 function; reach a module itself with ``importlib.import_module``.
@@ -22,5 +24,7 @@ from __future__ import annotations
 
 from .animate_scan import OFFSET_WARNING_MM, AnimationResult, animate_scan
 from .capture_wrinkles import WrinkleCapture, capture_wrinkles
+from .edit_muscles import EDIT_METHOD, MuscleEditResult, edit_muscles
 
-__all__ = ["animate_scan", "AnimationResult", "OFFSET_WARNING_MM", "capture_wrinkles", "WrinkleCapture"]
+__all__ = ["animate_scan", "AnimationResult", "OFFSET_WARNING_MM", "capture_wrinkles", "WrinkleCapture",
+           "edit_muscles", "MuscleEditResult", "EDIT_METHOD"]
