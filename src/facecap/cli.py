@@ -893,7 +893,7 @@ def _cmd_solve_muscles(args: argparse.Namespace) -> int:
     from .io.export_result import parse_export_formats
     from .io.read_markers import read_markers
     from .io.write_performance import check_result_destination
-    from .muscles import solve_muscle_take
+    from .pipelines import solve_muscle_take
 
     if args.workers < 1 or args.chunk_frames < 1:
         raise FacecapError("--workers and --chunk-frames: expected positive integers")

@@ -5,7 +5,7 @@ Sifakis et al. 2005, sec. 9: the result's solved controls read back (``activatio
 solved by a :class:`~facecap.muscles.MuscleEditor` (an interpolation between two frames by
 :func:`~facecap.muscles.interpolate_controls`, the force-length curves scaled, or a kinematic
 sphere pressing on the face), and the result written in ``solve-muscles``' layout
-(:func:`~facecap.muscles.solve_muscle_take`'s writer) with ``report.json`` saying how each frame
+(:func:`~facecap.pipelines.write_muscle_result`) with ``report.json`` saying how each frame
 solved.
 """
 
@@ -31,8 +31,8 @@ from ..muscles.muscle_controls import MuscleControls
 from ..muscles.muscle_editor import (DEFAULT_INTERPOLATION_FRAMES, DEFAULT_PENETRATION_TOLERANCE_MM, EditedFrame,
                                      MuscleEditor, interpolate_controls, interpolate_rigid_motions)
 from ..muscles.muscle_frame_stage import model_folder_sha256
-from ..muscles.solve_muscle_take import ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, write_muscle_result
 from ..typing import FloatArray, IntArray
+from .write_muscle_result import ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, write_muscle_result
 
 __all__ = ["edit_muscles", "MuscleEditResult", "EDIT_METHOD"]
 
@@ -144,7 +144,7 @@ def edit_muscles(
         A ``facecap solve-muscles`` result (``performance.json``, ``activations.csv``,
         ``bone_transforms.npz``).
     out_dir : str or path-like
-        The edited result, the same layout (:func:`~facecap.muscles.solve_muscle_take`'s
+        The edited result, the same layout (:func:`~facecap.pipelines.solve_muscle_take`'s
         writer; written atomically).
     scale_force_length : float, optional
         Re-solve every frame with every muscle's force-length curve scaled by this (positive;
@@ -166,7 +166,7 @@ def edit_muscles(
     penetration_tolerance_mm : float, default 0.05
         See :class:`~facecap.muscles.MuscleEditor`.
     exports, progress, export_options, overwrite
-        As for :func:`~facecap.muscles.solve_muscle_take` (an earlier result in ``out_dir`` is
+        As for :func:`~facecap.pipelines.solve_muscle_take` (an earlier result in ``out_dir`` is
         refused before any work unless ``overwrite``).
 
     Returns
