@@ -17,13 +17,13 @@ Run (one core a run; 8-17 minutes a case at the default model size, most of it t
 Protocol
 --------
 Every take is conditioned once, with all its markers, as ``animate`` conditions a take
-(:func:`facecap.deform.prepare_markers`: matched, gap-filled, stabilised, the bilateral filter with
+(:func:`facecap.markers.prepare_markers`: matched, gap-filled, stabilised, the bilateral filter with
 its temporal sigma chosen per take). The conditioned markers are then the input of both methods,
 frame for frame (``smooth=False``, ``stabilize=False`` from there on), so neither sees anything
 the other does not:
 
 - ``animate``: :func:`facecap.pipelines.animate_scan` (the warp, the marker offsets, the thin shell);
-- muscles: :func:`facecap.muscles.solve_muscle_take` with ``retarget='warp'``, so its markers reach
+- muscles: :func:`facecap.pipelines.solve_muscle_take` with ``retarget='warp'``, so its markers reach
   the face by the same triharmonic warp from the same rest markers (``rest_average``) onto the same
   lifted map points: the difference is the face model alone. One runner chunk (only the first frame
   solved from rest), in this process. The model is ``build_anatomy`` of the take's scan at
@@ -87,7 +87,7 @@ from facecap.deform.triharmonic_warp import TriharmonicWarp  # noqa: E402
 from facecap.errors import FacecapWarning  # noqa: E402
 from facecap.io.read_correspondence import read_correspondence  # noqa: E402
 from facecap.io.read_markers import read_markers  # noqa: E402
-from facecap.muscles import solve_muscle_take  # noqa: E402
+from facecap.pipelines import solve_muscle_take  # noqa: E402
 from facecap.structures import MarkerSequence, Mesh  # noqa: E402
 from facecap.synth import bundled_path, load_ict_sample  # noqa: E402
 

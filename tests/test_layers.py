@@ -26,9 +26,6 @@ PACKAGE = ROOT / "src" / "facecap"
 ARCHITECTURE = ROOT / "docs" / "architecture.md"
 
 KNOWN_DEBT = {
-    # the jobs still live in solver packages (issue 29 item 1: facecap/pipelines)
-    "arrow muscles -> report", "arrow muscles -> runner",
-    "private facecap.demo <- facecap.muscles.solve_muscle_take",
     # io's writer calls the exports and the report page; its exports run a PCA and decimate a mesh;
     # the conditioned take's file holds a markers record (issue 29 item 2: io as file formats only)
     "arrow io -> report", "arrow io -> deform", "arrow io -> markers", "arrow io -> mesh",

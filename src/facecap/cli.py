@@ -893,7 +893,7 @@ def _cmd_solve_muscles(args: argparse.Namespace) -> int:
     from .io.export_result import parse_export_formats
     from .io.read_markers import read_markers
     from .io.write_performance import check_result_destination
-    from .muscles import solve_muscle_take
+    from .pipelines import solve_muscle_take
 
     if args.workers < 1 or args.chunk_frames < 1:
         raise FacecapError("--workers and --chunk-frames: expected positive integers")
@@ -960,7 +960,7 @@ def _add_edit_muscles(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_edit_muscles(args: argparse.Namespace) -> int:
     from .io.export_result import parse_export_formats
-    from .muscles import edit_muscles
+    from .pipelines import edit_muscles
 
     exports = parse_export_formats(args.export)  # before any long work
     if args.sphere_to is not None and args.sphere is None:

@@ -354,8 +354,8 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
 
     from .anatomy import build_anatomy, render_anatomy_layout
     from .io.read_markers import read_markers
-    from .muscles import FRAME_FLAG_MEANINGS, solve_muscle_take
-    from .muscles.solve_muscle_take import _plot_activations
+    from .muscles import FRAME_FLAG_MEANINGS
+    from .pipelines import plot_muscle_activations, solve_muscle_take
     from .report import MeshPanel, render_side_by_side
     from .synth.ict_sample import bundled_path
 
@@ -392,7 +392,7 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
     at_j = {label: r for label, r in zip(residual["labels"], residual["per_frame"][j]) if r is not None}
     worst_markers = sorted(at_j, key=at_j.get, reverse=True)[:4]
     performance = json.loads((done.out_dir / "performance.json").read_text())
-    _plot_activations(
+    plot_muscle_activations(
         pictures / "muscles_activations.png", frames, float(performance["rate"]), tuple(names), A, report, performance,
         title=f"Real take (AnimFace), frames {first}-{first + _MUSCLE_DEMO_FRAMES - 1}: muscle activations "
               f"into {brows['expression']}",

@@ -25,14 +25,11 @@ In the order the solver uses them:
   (chunks of frames on Dask, resumable; the model and solver built once per process), its
   per-frame :data:`FRAME_FLAGS` bit mask (:func:`flag_names`; :data:`FRAME_FLAG_MEANINGS` says what each
   flag means) and :func:`model_folder_sha256`.
-- :func:`solve_muscle_take`, :class:`MuscleTakeResult` (``solve_muscle_take.py``): what
-  ``facecap solve-muscles`` does: model folder, take and map in, a result folder like
-  ``animate``'s out, plus :data:`ACTIVATIONS_FILE` and :data:`BONE_TRANSFORMS_FILE`
-  (:func:`write_muscle_result`, the writer ``edit-muscles`` shares).
-- :class:`MuscleEditor`, :func:`interpolate_controls`, :func:`edit_muscles` (``edit_muscles.py``):
-  editing in muscle space (sec. 9), what ``facecap edit-muscles`` does: two frames interpolated
-  in activation and bone space, an expression exaggerated by scaling the force-length curves, a
-  kinematic sphere pressing on the face; each frame a quasistatic solve.
+- :class:`MuscleEditor`, :func:`interpolate_controls`, :func:`interpolate_rigid_motions`
+  (``muscle_editor.py``): editing in muscle space (sec. 9), what ``facecap edit-muscles``
+  (:func:`facecap.pipelines.edit_muscles`) solves: two frames interpolated in activation and bone
+  space, an expression exaggerated by scaling the force-length curves, a kinematic sphere pressing
+  on the face; each frame a quasistatic solve.
 
 Units: mm, radians; see ``docs/muscles.md``.
 """
@@ -48,31 +45,22 @@ from .muscle_model import FOLLOWER_WEIGHT_LIMIT, MuscleModel
 from .muscle_solver import MuscleFrame, MuscleSolver
 from .solve_muscles import MuscleTake, solve_muscles
 from .muscle_frame_stage import FRAME_FLAG_MEANINGS, FRAME_FLAGS, MuscleFrameStage, flag_names, model_folder_sha256
-from .solve_muscle_take import (ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, RIGID_FIT_LIMIT_MM, MuscleTakeResult,
-                                solve_muscle_take, write_muscle_result)
-from .edit_muscles import (DEFAULT_PENETRATION_TOLERANCE_MM, EDIT_METHOD, EditedFrame, MuscleEditResult, MuscleEditor,
-                           SphereReport, edit_muscles, interpolate_controls)
+from .muscle_editor import (DEFAULT_INTERPOLATION_FRAMES, DEFAULT_PENETRATION_TOLERANCE_MM, EditedFrame, MuscleEditor,
+                            SphereReport, interpolate_controls, interpolate_rigid_motions)
 
 __all__ = [
+    "DEFAULT_INTERPOLATION_FRAMES",
     "DEFAULT_PENETRATION_TOLERANCE_MM",
-    "EDIT_METHOD",
     "EditedFrame",
-    "MuscleEditResult",
     "MuscleEditor",
     "SphereReport",
-    "edit_muscles",
     "interpolate_controls",
-    "ACTIVATIONS_FILE",
-    "BONE_TRANSFORMS_FILE",
-    "RIGID_FIT_LIMIT_MM",
+    "interpolate_rigid_motions",
     "FRAME_FLAGS",
     "FRAME_FLAG_MEANINGS",
     "MuscleFrameStage",
-    "MuscleTakeResult",
     "flag_names",
     "model_folder_sha256",
-    "solve_muscle_take",
-    "write_muscle_result",
     "ControlPenalty",
     "DEFAULT_MAX_OFFSET_MM",
     "FOLLOWER_WEIGHT_LIMIT",

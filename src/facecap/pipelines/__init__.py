@@ -20,9 +20,18 @@ calls the solver packages (arrays in, arrays out), and writes the result through
   performance from bases and weights, as ``blend`` writes it.
 - :func:`map_markers` (``map_markers.py``): ``facecap map``, a take's markers placed on a scan and
   written as ``map.json`` with its report and picture (:func:`map_side_files` names those two).
+- :func:`edit_muscles` (``edit_muscles.py``): ``facecap edit-muscles``, a ``solve-muscles`` result
+  edited in muscle space (Sifakis et al. 2005, sec. 9) and written as a new result folder, as a
+  :class:`MuscleEditResult` (its ``performance.json`` says :data:`EDIT_METHOD`).
+- :func:`solve_muscle_take` (``solve_muscle_take.py``): ``facecap solve-muscles``, a take solved
+  for muscle activations, cranium and jaw (Sifakis et al. 2005) on the frame runner, from an
+  anatomy model folder, as a :class:`MuscleTakeResult`; :data:`RIGID_FIT_LIMIT_MM` decides the
+  retarget.
+- :func:`write_muscle_result` (``write_muscle_result.py``): the result folder of both muscle jobs,
+  ``animate``'s plus :data:`ACTIVATIONS_FILE`, :data:`BONE_TRANSFORMS_FILE` and the activation
+  picture (:func:`plot_muscle_activations`).
 
-The other commands' jobs still live in their solver packages (issue 29): ``solve-muscles`` and
-``edit-muscles`` in :mod:`facecap.muscles`.
+Not here yet (issue 29): ``export`` and ``view`` (in :mod:`facecap.io` and :mod:`facecap.report`) and the demo.
 
 The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
 function; reach a module itself with ``importlib.import_module``.
@@ -33,24 +42,22 @@ from __future__ import annotations
 from .animate_scan import OFFSET_WARNING_MM, AnimationResult, animate_scan
 from .blend_take import blend_take
 from .capture_wrinkles import WrinkleCapture, capture_wrinkles
+from .edit_muscles import EDIT_METHOD, MuscleEditResult, edit_muscles
 from .map_markers import map_markers, map_side_files
 from .plan_scans import conditioned_take_path, plan_scans
 from .register_planned_scans import register_planned_scans
 from .replay_conditioning import replay_conditioning
+from .solve_muscle_take import RIGID_FIT_LIMIT_MM, MuscleTakeResult, solve_muscle_take
 from .write_blended_performance import write_blended_performance
+from .write_muscle_result import ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, plot_muscle_activations, write_muscle_result
 
 __all__ = [
-    "animate_scan",
-    "AnimationResult",
-    "OFFSET_WARNING_MM",
-    "capture_wrinkles",
-    "WrinkleCapture",
-    "plan_scans",
-    "conditioned_take_path",
-    "register_planned_scans",
-    "blend_take",
-    "replay_conditioning",
+    "animate_scan", "AnimationResult", "OFFSET_WARNING_MM",
+    "capture_wrinkles", "WrinkleCapture",
+    "plan_scans", "conditioned_take_path", "register_planned_scans", "blend_take", "replay_conditioning",
     "write_blended_performance",
-    "map_markers",
-    "map_side_files",
+    "map_markers", "map_side_files",
+    "edit_muscles", "MuscleEditResult", "EDIT_METHOD",
+    "solve_muscle_take", "MuscleTakeResult", "RIGID_FIT_LIMIT_MM",
+    "write_muscle_result", "plot_muscle_activations", "ACTIVATIONS_FILE", "BONE_TRANSFORMS_FILE",
 ]

@@ -8,7 +8,8 @@ from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError
 from facecap.fem import SphereContact
-from facecap.muscles import MuscleControls, MuscleEditor, MuscleModel, interpolate_controls
+from facecap.muscles import (JawConstraints, MuscleControls, MuscleEditor, MuscleModel, interpolate_controls,
+                             interpolate_rigid_motions)
 from facecap.muscles.muscle_model import apply_affine
 
 
@@ -58,6 +59,26 @@ def test_interpolated_controls_are_linear_in_activations_and_rigid_on_the_joint(
     with pytest.raises(InputError, match="activations"):
         interpolate_controls(a, MuscleControls.rest(3), model.jaw, 3)
 
+
+def test_rigid_motions_are_interpolated_as_the_cranium_is() -> None:
+    turn = Rotation.from_rotvec(np.radians(20.0) * np.array([0.0, 0.6, 0.8]))
+    start, end = np.eye(4, dtype=np.float32), np.eye(4, dtype=np.float32)
+    start[:3, 3] = [1.0, 2.0, 3.0]
+    end[:3, :3], end[:3, 3] = turn.as_matrix(), [5.0, 2.0, -1.0]
+    path = interpolate_rigid_motions(start, end, 5)
+    assert path.shape == (5, 4, 4) and path.dtype == np.float32
+    np.testing.assert_allclose(path[0], start, atol=1e-6)
+    np.testing.assert_allclose(path[-1], end, atol=1e-6)
+    np.testing.assert_array_equal(path[:, 3], np.tile([0.0, 0.0, 0.0, 1.0], (5, 1)))
+    # a quarter of the way: a quarter of the turn about the same axis, a quarter of the translation
+    quarter = Rotation.from_matrix(path[1, :3, :3].astype(np.float64)).as_rotvec()
+    np.testing.assert_allclose(quarter, 0.25 * turn.as_rotvec(), atol=1e-6)
+    np.testing.assert_allclose(path[1, :3, 3], 0.75 * start[:3, 3] + 0.25 * end[:3, 3], atol=1e-6)
+    # the same path interpolate_controls gives the cranium
+    jaw = JawConstraints(np.array([1.0, 0, 0]), np.array([0.0, 0, 1]), np.array([0.0, 40, -60]), 100.0)
+    controls = interpolate_controls(MuscleControls(np.zeros(1), start[:3].astype(np.float64), jaw.transform(0.0)),
+                                    MuscleControls(np.zeros(1), end[:3].astype(np.float64), jaw.transform(0.0)), jaw, 5)
+    np.testing.assert_allclose(path[:, :3], np.stack([c.cranium for c in controls]), atol=1e-6)
 
 def test_interpolation_ends_are_the_solved_faces_and_every_frame_solves(editor, model) -> None:
     a, b = _controls(model, 3, 3.0, 1.0), _controls(model, 4, 10.0, -2.0)

@@ -1,22 +1,21 @@
-"""A take solved for muscle activations on the frame runner, written as a result folder: ``facecap solve-muscles``.
+"""``facecap solve-muscles``'s job: a take solved for muscle activations on the frame runner, written as a result folder.
 
 The one call the command makes (issue 11, items 5 and 6):
 
 1. the anatomy model folder (``facecap build-anatomy``) is opened and its scan is the output mesh;
 2. the take is read and conditioned as ``facecap animate`` conditions it
-   (:func:`~facecap.deform.prepare_markers`: matched to the map, gap-filled, filtered);
+   (:func:`~facecap.markers.prepare_markers`: matched to the map, gap-filled, filtered);
 3. the rest frame's markers are moved rigidly onto the scan (the solver's rest markers; the
    cranium then carries the take's own coordinates), and every frame is solved on the frame
    runner (:class:`~facecap.muscles.MuscleFrameStage`: Dask, resumable chunks, each chunk's
    first frame cold);
-4. the result is written through :class:`~facecap.io.PerformanceWriter` like ``animate``'s
+4. the result is written by :func:`~facecap.pipelines.write_muscle_result` like ``animate``'s
    (``vertices.npy``, ``performance.json``, ``report.json``, exports) plus ``activations.csv``,
    ``bone_transforms.npz``, ``markers.npy`` and ``activations.png``, all in one atomic folder.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 import sys
@@ -28,19 +27,27 @@ from typing import Any, Iterable, Mapping, NamedTuple
 
 import numpy as np
 
+from ..anatomy.face_anatomy import FaceAnatomy, load_anatomy
+from ..deform.marker_offsets import marker_ring
+from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
 from ..errors import CorrespondenceError, FacecapWarning, InputError
 from ..io.atomic_write import final_path
+from ..io.export_result import parse_export_formats
+from ..io.read_correspondence import Correspondence, read_correspondence
+from ..io.read_markers import read_markers
+from ..io.write_performance import check_result_destination, import_writers
 from ..markers.consensus_stabilize import estimate_marker_noise
+from ..markers.prepare_take import (DEFAULT_REST_AVERAGE_S, PreparedMarkers, head_pose_in_scan, prepare_markers,
+                                    rest_average)
 from ..markers.rigid_fit import rigid_fit
+from ..muscles.marker_embedding import marker_embedding
+from ..muscles.muscle_frame_stage import MuscleFrameStage, flag_names, model_folder_sha256
+from ..runner.run_frames import FrameRun, run_frames
+from ..structures import MarkerSequence
 from ..validate import as_positive
+from .write_muscle_result import write_muscle_result
 
-__all__ = ["solve_muscle_take", "MuscleTakeResult", "ACTIVATIONS_FILE", "BONE_TRANSFORMS_FILE", "RIGID_FIT_LIMIT_MM",
-           "write_muscle_result"]
-
-ACTIVATIONS_FILE = "activations.csv"
-"""Per frame and muscle: a header row ``frame,<muscle names>``, one row per frame."""
-BONE_TRANSFORMS_FILE = "bone_transforms.npz"
-"""``cranium``, ``mandible`` (T, 3, 4), ``jaw_pose`` (T, 3) and ``frames`` (T,) of the result."""
+__all__ = ["solve_muscle_take", "MuscleTakeResult", "RIGID_FIT_LIMIT_MM"]
 
 DEFAULT_CHUNK_FRAMES = 32
 RIGID_FIT_LIMIT_MM = 5.0
@@ -71,7 +78,7 @@ class MuscleTakeResult(NamedTuple):
     reused: tuple[int, ...]
 
 
-def _frame_range(frames: Any, n_frames: int, source: str | None) -> tuple[int, int]:
+def _frame_range(frames: str | tuple[int, int] | None, n_frames: int, source: str | None) -> tuple[int, int]:
     if frames is None:
         return 0, n_frames
     if isinstance(frames, str):
@@ -90,8 +97,8 @@ def _frame_range(frames: Any, n_frames: int, source: str | None) -> tuple[int, i
 
 def solve_muscle_take(
     model_dir: str | os.PathLike[str],
-    markers: Any,
-    correspondence: Any,
+    markers: str | os.PathLike[str] | MarkerSequence,
+    correspondence: str | os.PathLike[str] | Correspondence,
     out_dir: str | os.PathLike[str],
     *,
     rest_frame: int = 0,
@@ -150,7 +157,7 @@ def solve_muscle_take(
         markers, labels name them). Default: with the warp, stabilised (a warp is a map of the
         rest pose: a turned head through it would bend); rigid, not (the cranium solves it).
     smooth, temporal_sigma_s
-        The bilateral filter, as for ``animate`` (:func:`~facecap.deform.prepare_markers`).
+        The bilateral filter, as for ``animate`` (:func:`~facecap.markers.prepare_markers`).
     frames : 'A:B' or (A, B), optional
         Solve and write only take frames ``A <= frame < B`` (conditioned over the whole take).
     scheduler : str or None, default None
@@ -199,19 +206,6 @@ def solve_muscle_take(
     cranium there carries what stabilisation left of the head's motion), and a stabilised take's
     head motion is in ``head_motion.npy``, as for a stabilised ``animate`` result.
     """
-    from ..anatomy import load_anatomy
-    from ..markers.prepare_take import DEFAULT_REST_AVERAGE_S, head_pose_in_scan, prepare_markers, rest_average
-    from ..deform.marker_offsets import marker_ring
-    from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
-    from ..io.export_result import parse_export_formats
-    from ..io.read_correspondence import Correspondence, read_correspondence
-    from ..io.read_markers import read_markers
-    from ..io.write_performance import check_result_destination, import_writers
-    from ..runner import run_frames
-    from ..structures import MarkerSequence
-    from .marker_embedding import marker_embedding
-    from .muscle_frame_stage import MuscleFrameStage, flag_names, model_folder_sha256
-
     t_all = time.perf_counter()
     timings: dict[str, float] = {}
 
@@ -240,7 +234,7 @@ def solve_muscle_take(
     t = time.perf_counter()
     caught: list[str] = []
 
-    def condition(stabilized: bool | str | Iterable[str]) -> tuple[Any, list[str]]:
+    def condition(stabilized: bool | str | Iterable[str]) -> tuple[PreparedMarkers, list[str]]:
         with warnings.catch_warnings(record=True) as records:
             warnings.simplefilter("always", FacecapWarning)
             stage(f"conditioning {take.n_frames} frames x {take.n_markers} markers"
@@ -342,7 +336,7 @@ def solve_muscle_take(
         t = time.perf_counter()
         stage(f"writing {out_dir}")
         result = {name: run.load(name, mmap=name == "vertices") for name in run.array_specs}
-        report = _report(result, labels, anatomy, first, rest_frame, run, prepared, caught, flag_names)
+        report = _report(result, labels, anatomy, first, rest_frame, run, prepared, caught)
         report["markers_left_out"] = left_out
         metadata = {
             "source_files": {"model": str(model_dir), "markers": take.source_path, "map": map_name},
@@ -385,51 +379,8 @@ def _rigid_gap(rest: np.ndarray, targets: np.ndarray) -> float:
     return float(np.linalg.norm(rest @ fit.rotation.T + fit.translation - targets, axis=1).max())
 
 
-def _write_npz(path: Path, **arrays: np.ndarray) -> None:
-    """An uncompressed ``.npz`` with fixed member order and ZIP times: the same arrays give the same bytes."""
-    import zipfile
-
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_STORED) as archive:
-        for name, value in arrays.items():
-            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            info.external_attr = 0o644 << 16
-            with archive.open(info, "w") as member:
-                np.lib.format.write_array(member, np.ascontiguousarray(value), allow_pickle=False)
-
-
-def _write_activations(path: Path, frames: np.ndarray, names: Iterable[str], activations: np.ndarray) -> None:
-    """``activations.csv``: ``frame,<names>``, one row per frame (its number in ``frames``), 6 decimals."""
-    lines = [",".join(["frame", *names])]
-    for number, row in zip(frames, np.asarray(activations)):
-        lines.append(",".join([str(int(number)), *(f"{v:.6f}" for v in row)]))
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-
-
-def _plot_activations(path: Path, frames: np.ndarray, rate: float, names: tuple[str, ...], activations: np.ndarray,
-                      report: Mapping[str, Any], metadata: Mapping[str, Any], *, title: str | None = None,
-                      caption: str | None = None) -> None:
-    """``activations.png``: the activations over time, the flagged frames shaded, each frame's largest marker
-    residual against the ``large_residual`` threshold (when the report has residuals: a solve, not an edit).
-
-    ``report`` and ``metadata`` are ``report.json`` and ``performance.json`` (its solver options); ``title``
-    and ``caption`` replace the default title and add a caption (the demo says what its frames are)."""
-    from ..report.plot_activations import plot_activations
-    from .muscle_solver import FLAG_RESIDUAL_MM
-
-    flags = report.get("flags") or {}
-    flagged = np.array([bool(flags.get(str(int(f)))) for f in frames])
-    residual = (report.get("marker_residual_mm") or {}).get("per_frame_max")
-    if residual is not None:
-        residual = np.array([np.nan if r is None else r for r in residual], dtype=np.float64)
-    solver = ((metadata.get("parameters") or {}).get("solver") or {})
-    threshold = float(solver.get("flag_residual_mm", FLAG_RESIDUAL_MM))
-    plot_activations(frames / rate, activations, names, path, flagged=flagged,
-                     max_residual_mm=residual, flag_residual_mm=threshold if residual is not None else None,
-                     title=title or f"muscle activations, frames {int(frames[0])}-{int(frames[-1])}", caption=caption)
-
-
-def _report(result: Mapping[str, np.ndarray], labels: tuple[str, ...], anatomy: Any, first: int, rest_frame: int,
-            run: Any, prepared: Any, caught: list[str], flag_names: Any) -> dict[str, Any]:
+def _report(result: Mapping[str, np.ndarray], labels: tuple[str, ...], anatomy: FaceAnatomy, first: int,
+            rest_frame: int, run: FrameRun, prepared: PreparedMarkers, caught: list[str]) -> dict[str, Any]:
     """``report.json``: per-frame marker residuals, flags, iterations, constraint and runner figures."""
     res = np.asarray(result["marker_residual"], dtype=np.float64)
     finite = np.where(np.isfinite(res), res, -np.inf)
@@ -469,75 +420,3 @@ def _report(result: Mapping[str, np.ndarray], labels: tuple[str, ...], anatomy: 
         "notes": list(prepared.notes),
         "warnings": caught,
     }
-
-
-def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float, frames: Any,
-                        muscle_names: Iterable[str], arrays: Mapping[str, Any], *, report: dict[str, Any],
-                        metadata: dict[str, Any], extra_arrays: Mapping[str, np.ndarray] | None = None,
-                        exports: Iterable[str] = (), progress: bool = False, timings: dict[str, float] | None = None,
-                        started: float | None = None, write_started: float | None = None,
-                        desc: str = "solve-muscles", export_options: Mapping[str, Any] | None = None,
-                        overwrite: bool = False) -> Path:
-    """Write a muscle result folder (``solve-muscles``, ``edit-muscles``) in one atomic step.
-
-    Parameters
-    ----------
-    out_dir : str or path-like
-    scan : Mesh
-        The model's scan (the output mesh).
-    rate : float, Hz
-    frames : (T,) int array
-        Frame numbers of the rows (``activations.csv``'s ``frame`` column, ``bone_transforms.npz``'s ``frames``).
-    muscle_names : iterable of str
-    arrays : mapping
-        ``vertices`` (T, n, 3) float32 mm (sliced by frame ranges: an array or a memory map),
-        ``activations`` (T, k), ``cranium`` and ``mandible`` (T, 3, 4), ``jaw_pose`` (T, 3).
-    report, metadata : dict
-        ``report.json`` and what :meth:`PerformanceWriter.finish` adds to ``performance.json``;
-        both get ``timings``.
-    extra_arrays : mapping of file name to array, optional
-        Saved with ``np.save`` (``markers.npy``, ``head_motion.npy``).
-    exports, progress
-        As for :class:`~facecap.io.PerformanceWriter`.
-    timings : dict, optional
-        Updated with ``write_s`` (since ``write_started``, default now) and ``total_s`` (since ``started``).
-    desc : str
-        The progress bar's label.
-    export_options : mapping, optional
-        Passed to :func:`facecap.io.export_result`.
-    overwrite : bool, default False
-        Replace an earlier result in ``out_dir`` (:class:`~facecap.io.PerformanceWriter`).
-
-    Returns
-    -------
-    Path
-        The finished folder.
-    """
-    from ..io.write_performance import PerformanceWriter
-
-    t = time.perf_counter() if write_started is None else write_started
-    frames = np.asarray(frames, dtype=np.int64).reshape(-1)
-    names = tuple(muscle_names)
-    timings = {} if timings is None else timings
-    with PerformanceWriter(out_dir, mesh=scan, rate=rate, n_frames=frames.size, exports=exports, overwrite=overwrite,
-                           export_options={"progress": progress, **(export_options or {})}) as writer:
-        skin = arrays["vertices"]
-
-        def compute(lo: int, hi: int, out: np.ndarray) -> None:
-            out[:] = skin[lo:hi]
-
-        writer.stream(compute, batch_frames=32, progress=progress, desc=desc)
-        for name, value in (extra_arrays or {}).items():
-            np.save(writer.path(name), value)
-        _write_activations(writer.path(ACTIVATIONS_FILE), frames, names, arrays["activations"])
-        _write_npz(writer.path(BONE_TRANSFORMS_FILE), cranium=arrays["cranium"], mandible=arrays["mandible"],
-                   jaw_pose=arrays["jaw_pose"], frames=frames)
-        _plot_activations(writer.path("activations.png"), frames, float(rate), names, arrays["activations"], report,
-                          metadata)
-        timings["write_s"] = time.perf_counter() - t
-        if started is not None:
-            timings["total_s"] = time.perf_counter() - started
-        report["timings"] = timings
-        writer.path("report.json").write_text(json.dumps(report, indent=1))
-        metadata["timings"] = timings
-        return writer.finish(metadata)
