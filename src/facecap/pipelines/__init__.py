@@ -35,29 +35,63 @@ Not here yet (issue 29): ``export`` and ``view`` (in :mod:`facecap.io` and :mod:
 
 The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
 function; reach a module itself with ``importlib.import_module``.
+
+Each job's module is imported when one of its names is first used, not with the package: the jobs
+between them load every solver package, matplotlib and trimesh (1-2 s), and a command needs one job
+(``facecap animate`` loads neither the anatomy nor the muscle solver). Importing a job's module
+binds its name here to the job's function, as an eager ``from .animate_scan import animate_scan``
+would.
 """
 
 from __future__ import annotations
 
-from .animate_scan import OFFSET_WARNING_MM, AnimationResult, animate_scan
-from .blend_take import blend_take
-from .capture_wrinkles import WrinkleCapture, capture_wrinkles
-from .edit_muscles import EDIT_METHOD, MuscleEditResult, edit_muscles
-from .map_markers import map_markers, map_side_files
-from .plan_scans import conditioned_take_path, plan_scans
-from .register_planned_scans import register_planned_scans
-from .replay_conditioning import replay_conditioning
-from .solve_muscle_take import RIGID_FIT_LIMIT_MM, MuscleTakeResult, solve_muscle_take
-from .write_blended_performance import write_blended_performance
-from .write_muscle_result import ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, plot_muscle_activations, write_muscle_result
+import importlib
+import sys
+import types
+from typing import Any
 
-__all__ = [
-    "animate_scan", "AnimationResult", "OFFSET_WARNING_MM",
-    "capture_wrinkles", "WrinkleCapture",
-    "plan_scans", "conditioned_take_path", "register_planned_scans", "blend_take", "replay_conditioning",
-    "write_blended_performance",
-    "map_markers", "map_side_files",
-    "edit_muscles", "MuscleEditResult", "EDIT_METHOD",
-    "solve_muscle_take", "MuscleTakeResult", "RIGID_FIT_LIMIT_MM",
-    "write_muscle_result", "plot_muscle_activations", "ACTIVATIONS_FILE", "BONE_TRANSFORMS_FILE",
-]
+_PUBLIC = {
+    "animate_scan": ("animate_scan", "AnimationResult", "OFFSET_WARNING_MM"),
+    "capture_wrinkles": ("capture_wrinkles", "WrinkleCapture"),
+    "plan_scans": ("plan_scans", "conditioned_take_path"),
+    "register_planned_scans": ("register_planned_scans",),
+    "blend_take": ("blend_take",),
+    "replay_conditioning": ("replay_conditioning",),
+    "write_blended_performance": ("write_blended_performance",),
+    "map_markers": ("map_markers", "map_side_files"),
+    "edit_muscles": ("edit_muscles", "MuscleEditResult", "EDIT_METHOD"),
+    "solve_muscle_take": ("solve_muscle_take", "MuscleTakeResult", "RIGID_FIT_LIMIT_MM"),
+    "write_muscle_result": ("write_muscle_result", "plot_muscle_activations", "ACTIVATIONS_FILE",
+                            "BONE_TRANSFORMS_FILE"),
+}
+"""Each job module's public names, by module."""
+
+_HOME = {name: module for module, names in _PUBLIC.items() for name in names}
+
+__all__ = [name for names in _PUBLIC.values() for name in names]
+
+
+def __getattr__(name: str) -> Any:
+    module = _HOME.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{module}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
+
+class _JobPackage(types.ModuleType):
+    """The package, whose attribute named after a job module is that job's function, never the module."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        # the import system binds a submodule to its name here once it has run: keep the function instead
+        if isinstance(value, types.ModuleType) and _HOME.get(name) == name:
+            value = getattr(value, name)
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _JobPackage
