@@ -21,6 +21,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..mesh.resample_polyline import resample_polyline
 from ..typing import FloatArray, IntArray
 from .anatomy_landmarks import AnatomyLandmarks
 
@@ -167,13 +168,6 @@ def _sample_weights(count: int = SAMPLES_PER_TET) -> FloatArray:
     return np.random.default_rng(20050731).dirichlet(np.ones(4), size=count)
 
 
-def _resample(C: FloatArray, count: int) -> FloatArray:
-    seg = np.linalg.norm(np.diff(C, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    u = np.linspace(0.0, s[-1], count)
-    return np.stack([np.interp(u, s, C[:, k]) for k in range(3)], axis=1)
-
-
 def _centre_curve(spec: MuscleSpec, lm: AnatomyLandmarks, skin: FloatArray, normals: FloatArray,
                   depth: FloatArray, tree: cKDTree) -> tuple[FloatArray, FloatArray]:
     """Dense centre curve (mm) and the skin normal at each of its points."""
@@ -184,11 +178,8 @@ def _centre_curve(spec: MuscleSpec, lm: AnatomyLandmarks, skin: FloatArray, norm
     if spec.ring:
         ctrl = np.concatenate([ctrl, ctrl[:1]])
         d = np.concatenate([d, d[:1]])
-    seg = np.linalg.norm(np.diff(ctrl, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    u = np.linspace(0.0, s[-1], max(int(s[-1] / _SPACING_MM), 8))
-    P = np.stack([np.interp(u, s, ctrl[:, k]) for k in range(3)], axis=1)
-    frac = np.interp(u, s, d)
+    length = np.cumsum(np.linalg.norm(np.diff(ctrl, axis=0), axis=1))[-1]
+    P, (frac,), _ = resample_polyline(ctrl, max(int(length / _SPACING_MM), 8), [d])
     _, v = tree.query(P)
     n = normals[v]
     on_skin = P - np.einsum("ij,ij->i", P - skin[v], n)[:, None] * n
@@ -253,7 +244,7 @@ def facial_muscles(X: FloatArray, T: IntArray, landmarks: AnatomyLandmarks, skin
     curves = np.zeros((k, CURVE_SAMPLES, 3))
     for j, spec in enumerate(specs):
         C, n = _centre_curve(spec, landmarks, skin, normals, depth, tree)
-        curves[j] = _resample(C, CURVE_SAMPLES)
+        curves[j] = resample_polyline(C, CURVE_SAMPLES).points
         t = np.gradient(C, axis=0)
         if spec.ring:
             t[0] = t[-1] = C[1] - C[-2]

@@ -7,6 +7,8 @@ In the order a user meets them:
 - :func:`connected_pieces` (``connected_pieces.py``): which vertices belong together.
 - :func:`facing_outward` (``facing_outward.py``): whether a surface's triangles
   face away from it (outward winding) or into it, from its geometry alone.
+- :func:`resample_polyline` (``resample_polyline.py``): points evenly spaced along
+  a curve (a muscle's centre line, a wrinkle), as a :class:`ResampledPolyline`.
 - :func:`face_normals`, :func:`vertex_normals` (``vertex_normals.py``): normals
   of one frame or a stack, everywhere or at a few vertices (area-weighted).
 - :func:`weld_duplicate_vertices` (``weld_duplicate_vertices.py``): one vertex
@@ -35,6 +37,7 @@ from .factor_spd import SpdFactor, available_backends, load_backend
 from .laplacian import LaplaceOperators, laplace_operators
 from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
+from .resample_polyline import ResampledPolyline, resample_polyline
 from .review_mesh import ReviewMesh, review_mesh
 from .vertex_normals import face_normals, vertex_normals
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
@@ -57,6 +60,8 @@ __all__ = [
     "DEFAULT_FEATURE_THRESHOLD",
     "review_mesh",
     "ReviewMesh",
+    "resample_polyline",
+    "ResampledPolyline",
     "face_normals",
     "vertex_normals",
 ]

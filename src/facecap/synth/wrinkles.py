@@ -21,6 +21,7 @@ from ..errors import InputError
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
 from .expression_curves import EXPRESSION_PRESETS, _smoothstep
+from ..mesh.resample_polyline import resample_polyline
 from ..mesh.vertex_normals import vertex_normals
 from .ict_sample import IctSample
 
@@ -180,14 +181,6 @@ def _width_taper(s: FloatArray) -> FloatArray:
     return 0.7 + 0.3 * np.sin(np.pi * np.clip(s, 0.0, 1.0))
 
 
-def _resample_2d(P: FloatArray, k: int) -> FloatArray:
-    """k points uniform in arc length along the polyline P (m, 2)."""
-    seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    t = np.linspace(0.0, s[-1], k)
-    return np.stack([np.interp(t, s, P[:, 0]), np.interp(t, s, P[:, 1])], axis=1)
-
-
 def _lift(V: FloatArray, F: IntArray, xy: FloatArray) -> tuple[FloatArray, IntArray, FloatArray]:
     """Points on the surface seen along -z from above each (x, y): positions, triangles, barycentrics."""
     from ..cameras import ray_cast
@@ -314,7 +307,7 @@ def place_wrinkles(
             rows += curves
             kind_of += [kind] * len(curves)
     c, k = len(rows), CURVE_POINTS
-    xy = np.stack([_resample_2d(P, k) for _, _, P in rows])
+    xy = np.stack([resample_polyline(P, k).points for _, _, P in rows])
     pts, faces, bary = _lift(V, F, xy.reshape(-1, 2))
     pts, faces, bary = pts.reshape(c, k, 3), faces.reshape(c, k), bary.reshape(c, k, 3)
     seg = np.linalg.norm(np.diff(pts, axis=1), axis=2)

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FacecapWarning, InputError
+from ..mesh.resample_polyline import resample_polyline
 from ..typing import FloatArray
 
 __all__ = ["WrinkleFrameStage", "large_scale_in_mocap", "first_frame_anchors",
@@ -85,15 +86,6 @@ def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.nda
         R = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt  # the nearest rotation to the blend
         Y = Y @ R.T + M[:3, 3]
     return Y
-
-
-def _resample(points: FloatArray, values: Sequence[FloatArray], k: int) -> tuple[FloatArray, list[FloatArray]]:
-    """A polyline and values along it at ``k`` points uniform in arc length."""
-    seg = np.linalg.norm(np.diff(points, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(seg)])
-    u = np.linspace(0.0, s[-1], k)
-    P = np.stack([np.interp(u, s, points[:, c]) for c in range(3)], axis=1)
-    return P, [np.interp(u, s, v) for v in values]
 
 
 class WrinkleFrameStage:
@@ -250,7 +242,7 @@ class WrinkleFrameStage:
         residual = np.full(self.n_slots, np.nan, dtype=np.float32)
         names = [c.name for c in self.cameras]
         for row, wrinkle in enumerate(merged[: self.n_slots]):
-            P, (w, d) = _resample(wrinkle.points, [wrinkle.width, wrinkle.depth], CURVE_SAMPLES)
+            P, (w, d), _ = resample_polyline(wrinkle.points, CURVE_SAMPLES, [wrinkle.width, wrinkle.depth])
             slots[row] = np.column_stack([P, w, d])
             colors[row] = wrinkle.color
             parts = identity_parts(wrinkle.wrinkle)
