@@ -87,6 +87,17 @@ def test_image_to_float_and_srgb() -> None:
     np.testing.assert_allclose(linear_to_srgb(srgb_to_linear(x)), x, atol=2e-6)
 
 
+def test_srgb_matches_the_standard_and_keeps_a_computations_precision() -> None:
+    # IEC 61966-2-1: 0.5 linear encodes to 0.735357; 0.0031308 sits at the knee (12.92 x)
+    np.testing.assert_allclose(linear_to_srgb(np.array([0.0, 0.0031308, 0.18, 0.5, 1.0])),
+                               [0.0, 0.04044994, 0.46135612, 0.73535698, 1.0], atol=1e-7)
+    x = np.linspace(0, 1, 1001)
+    assert srgb_to_linear(x).dtype == np.float64 and linear_to_srgb(x).dtype == np.float64
+    np.testing.assert_allclose(srgb_to_linear(linear_to_srgb(x)), x, atol=1e-12)  # float64 in, float64 through
+    assert srgb_to_linear(x.astype(np.float32)).dtype == np.float32
+    assert srgb_to_linear(np.array([0, 255], np.uint8)).dtype == np.float32
+
+
 def test_bad_images(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="EXR holds floats"):
         write_image(tmp_path / "a.exr", np.zeros((4, 4), np.uint8))

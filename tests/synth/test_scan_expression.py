@@ -206,7 +206,7 @@ def test_colour_option_keeps_the_geometry_bit_for_bit(two_poses) -> None:
 
 
 def test_colour_follows_the_material_point_not_the_posed_position(two_poses) -> None:
-    from facecap.synth.capture_colors import srgb_decode
+    from facecap.cameras import srgb_to_linear
     from facecap.synth.skin_albedo import skin_albedo
 
     rest, V, F = two_poses
@@ -214,7 +214,7 @@ def test_colour_follows_the_material_point_not_the_posed_position(two_poses) -> 
     for pose, seed in ((rest, 1), (V, 2)):
         scan = scan_expression(pose, F, target_vertices=8000, seed=seed, material_points=rest, albedo_seed=7)
         material = np.einsum("kc,kcd->kd", scan.barycentric, rest[F[scan.source_faces]])
-        linear = srgb_decode(scan.mesh.vertex_colors)
+        linear = srgb_to_linear(scan.mesh.vertex_colors.astype(np.float64))
         # recorded / true albedo at the material point: exposure x smooth shading (+-8 %) and noise only
         ratio = (linear / skin_albedo(material, seed=7)) @ LUMA
         posed = (linear / skin_albedo(scan.surface_points, seed=7)) @ LUMA

@@ -50,6 +50,12 @@ def image_to_float(image: Any) -> np.ndarray:
     raise InputError(f"image: expected uint8, uint16 or float values, got {A.dtype}")
 
 
+def _float_of(values: Any) -> np.ndarray:
+    """``values`` as float64 where they are float64 (a computation's), float32 otherwise (an image's)."""
+    A = np.asarray(values)
+    return A if A.dtype == np.float64 else A.astype(np.float32)
+
+
 def srgb_to_linear(values: Any) -> np.ndarray:
     """Decode sRGB-encoded values in [0, 1] to linear light (IEC 61966-2-1).
 
@@ -59,25 +65,28 @@ def srgb_to_linear(values: Any) -> np.ndarray:
 
     Returns
     -------
-    (same shape) float32 array
+    (same shape) float array
+        float64 for float64 values, float32 for any other (an image's).
 
     Notes
     -----
     ``c / 12.92`` for ``c <= 0.04045``, else ``((c + 0.055) / 1.055) ** 2.4``.
     """
-    c = np.asarray(values, dtype=np.float32)
-    return np.where(c <= 0.04045, c / np.float32(12.92), ((c + np.float32(0.055)) / np.float32(1.055)) ** 2.4
-                    ).astype(np.float32)
+    c = _float_of(values)
+    t = c.dtype.type
+    return np.where(c <= 0.04045, c / t(12.92), ((c + t(0.055)) / t(1.055)) ** t(2.4)).astype(c.dtype)
 
 
 def linear_to_srgb(values: Any) -> np.ndarray:
     """Encode linear values in [0, 1] as sRGB (the inverse of :func:`srgb_to_linear`).
 
+    Returns float64 for float64 values, float32 for any other.
+
     Notes
     -----
     ``12.92 c`` for ``c <= 0.0031308``, else ``1.055 c ** (1 / 2.4) - 0.055``.
     """
-    c = np.asarray(values, dtype=np.float32)
+    c = _float_of(values)
+    t = c.dtype.type
     positive = np.maximum(c, 0)
-    return np.where(c <= 0.0031308, np.float32(12.92) * c,
-                    np.float32(1.055) * positive ** np.float32(1 / 2.4) - np.float32(0.055)).astype(np.float32)
+    return np.where(c <= 0.0031308, t(12.92) * c, t(1.055) * positive ** t(1 / 2.4) - t(0.055)).astype(c.dtype)

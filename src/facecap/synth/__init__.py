@@ -27,9 +27,9 @@ In the order a user meets them:
   way a range scanner would, as a :class:`ScannedExpression`.
 - :func:`skin_albedo`, :class:`SkinRegions`, :data:`BASE_SKIN_TONE`
   (``skin_albedo.py``): the skin's linear reflectance as a solid texture of
-  the material point; :func:`capture_colors`, :func:`srgb_encode`,
-  :func:`srgb_decode` (``capture_colors.py``): what a scanner's camera
-  records of it (exposure, shading, noise, sRGB), for ``Mesh.vertex_colors``.
+  the material point; :func:`capture_colors` (``capture_colors.py``): what a
+  scanner's camera records of it (exposure, shading, noise, sRGB by
+  :func:`facecap.cameras.linear_to_srgb`), for ``Mesh.vertex_colors``.
 - :func:`write_synthetic_case`, :func:`write_planned_scans`
   (``write_synthetic_case.py``): a case on disk as a user would hold it
   (scan, take, map, truth), as :class:`CaseFiles`; :func:`correspondence_json`, its ``map.json``.
@@ -61,7 +61,7 @@ from .generate_performance import (
     random_identity,
     RANDOM_IDENTITY_SD,
 )
-from .capture_colors import capture_colors, srgb_decode, srgb_encode
+from .capture_colors import capture_colors
 from .ict_sample import IctSample, bundled_path, load_ict_sample
 from .marker_layout import animface_marker_map, boundary_vertices, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, RealCurveFit, load_real_curve_fit, real_motion_curves
@@ -116,8 +116,6 @@ __all__ = [
     "SkinRegions",
     "BASE_SKIN_TONE",
     "capture_colors",
-    "srgb_encode",
-    "srgb_decode",
     "write_synthetic_case",
     "write_planned_scans",
     "correspondence_json",

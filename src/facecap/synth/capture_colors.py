@@ -4,27 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..cameras.image_to_float import linear_to_srgb
 from ..errors import InputError
 from ..typing import FloatArray
 from ..validate import as_points, as_positive
 
-__all__ = ["capture_colors", "srgb_encode", "srgb_decode"]
-
-
-def srgb_encode(linear: FloatArray) -> FloatArray:
-    """The sRGB transfer function (IEC 61966-2-1): linear light in [0, 1] to encoded values.
-
-    ``12.92 x`` for ``x <= 0.0031308``, else ``1.055 x^(1/2.4) - 0.055``.
-    Values are clipped to [0, 1] first.
-    """
-    x = np.clip(np.asarray(linear, dtype=np.float64), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1.0 / 2.4) - 0.055)
-
-
-def srgb_decode(encoded: FloatArray) -> FloatArray:
-    """The inverse of :func:`srgb_encode`: sRGB-encoded values in [0, 1] to linear light."""
-    y = np.clip(np.asarray(encoded, dtype=np.float64), 0.0, 1.0)
-    return np.where(y <= 0.04045, y / 12.92, np.power((y + 0.055) / 1.055, 2.4))
+__all__ = ["capture_colors"]
 
 
 def capture_colors(
@@ -58,7 +43,8 @@ def capture_colors(
     Returns
     -------
     (n, 3) float32 array
-        ``srgb_encode(albedo * exposure * shading(points) + noise)``, clipped to [0, 1],
+        ``albedo * exposure * shading(points) + noise`` clipped to [0, 1] and sRGB-encoded
+        (:func:`~facecap.cameras.linear_to_srgb`),
         ready for :attr:`facecap.structures.Mesh.vertex_colors`.
 
     Raises
@@ -69,7 +55,7 @@ def capture_colors(
     Notes
     -----
     ``shading(p) = 1 + s * mean_j cos(k_j . p + phi_j)`` over 4 random waves,
-    so ``|shading - 1| <= s``. Undo it by :func:`srgb_decode` and dividing by
+    so ``|shading - 1| <= s``. Undo it by :func:`~facecap.cameras.srgb_to_linear` and dividing by
     the exposure (and shading) to get the albedo back to within the noise.
 
     Examples
@@ -77,7 +63,8 @@ def capture_colors(
     >>> import numpy as np
     >>> a = np.full((4, 3), 0.2)
     >>> c = capture_colors(a, seed=0, exposure_range=(1.0, 1.0), noise=0.0)
-    >>> bool(np.allclose(srgb_decode(c), 0.2, atol=1e-6))
+    >>> from facecap.cameras import srgb_to_linear
+    >>> bool(np.allclose(srgb_to_linear(c), 0.2, atol=1e-6))
     True
     """
     A = np.asarray(albedo, dtype=np.float64)
@@ -104,4 +91,4 @@ def capture_colors(
         linear = linear * (1.0 + s * np.cos(P @ k.T + phase).mean(axis=1))[:, None]
     if sigma > 0:
         linear = linear + rng.normal(0.0, sigma, A.shape)
-    return srgb_encode(linear).astype(np.float32)
+    return linear_to_srgb(np.clip(linear, 0.0, 1.0)).astype(np.float32)
