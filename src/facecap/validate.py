@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError, MarkerError, MeshError
+from .rotations import nearest_rotation
 from .typing import FloatArray, IntArray
 
 __all__ = ["as_vertices", "as_faces", "as_marker_positions", "as_points", "as_positive", "as_positive_range",
@@ -134,8 +135,7 @@ def as_rigid_transform(T: Any, *, name: str, project: bool = False) -> FloatArra
         raise InputError(f"{name}: expected a finite (4, 4) rigid transform, got shape {A.shape}")
     R = A[:3, :3]
     if project:
-        U, _, Vt = np.linalg.svd(R)
-        A[:3, :3] = U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+        A[:3, :3] = nearest_rotation(R)
         return A
     if (
         not np.allclose(R @ R.T, np.eye(3), atol=1e-6)

@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..rotations import nearest_rotation
 from ..typing import FloatArray
 
 __all__ = ["JawConstraints"]
@@ -178,8 +179,7 @@ class JawConstraints:
     def pose(self, mandible: Any) -> FloatArray:
         """``(opening_rad, slide_left_mm, slide_right_mm)`` of a mandible transform (inverse of :meth:`transform`)."""
         b = np.asarray(mandible, dtype=np.float64)
-        U, _, Vt = np.linalg.svd(b[:, :3])
-        R = U @ Vt
+        R = nearest_rotation(b[:, :3])
         p = self.values(b)
         # the opening is the angle of R v in the (v, -w) plane after the yaw is taken out
         Rv = R @ self.v

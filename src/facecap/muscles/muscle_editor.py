@@ -28,6 +28,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from ..anatomy.build_anatomy import boundary_nodes
 from ..errors import InputError
+from ..rotations import nearest_rotation
 from ..typing import FloatArray, IntArray
 from .jaw_constraints import JawConstraints
 from .muscle_controls import MuscleControls
@@ -105,18 +106,9 @@ class EditedFrame(NamedTuple):
     sphere: SphereReport | None = None
 
 
-def _polar_rotation(M: FloatArray) -> FloatArray:
-    U, _, Vt = np.linalg.svd(M)
-    R = U @ Vt
-    if np.linalg.det(R) < 0:  # not a solved frame (those are rigid to 1e-5); keep it proper
-        U[:, -1] *= -1
-        R = U @ Vt
-    return R
-
-
 def _rigid_path(start: FloatArray, end: FloatArray, s: FloatArray) -> FloatArray:
     """Rigid frames ``(len(s), 3, 4)`` from ``start`` to ``end`` (3, 4): rotation by slerp, translation linearly."""
-    rotations = Rotation.from_matrix(np.stack([_polar_rotation(start[:, :3]), _polar_rotation(end[:, :3])]))
+    rotations = Rotation.from_matrix(np.stack([nearest_rotation(start[:, :3]), nearest_rotation(end[:, :3])]))
     R = Slerp([0.0, 1.0], rotations)(s).as_matrix()
     t = (1.0 - s)[:, None] * start[:, 3] + s[:, None] * end[:, 3]
     return np.concatenate([R, t[:, :, None]], axis=2)

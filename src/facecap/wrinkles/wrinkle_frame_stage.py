@@ -32,6 +32,7 @@ import numpy as np
 
 from ..errors import FacecapWarning, InputError
 from ..mesh.resample_polyline import resample_polyline
+from ..rotations import nearest_rotation
 from ..typing import FloatArray
 
 __all__ = ["WrinkleFrameStage", "large_scale_in_mocap", "first_frame_anchors",
@@ -82,8 +83,7 @@ def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.nda
         lo = int(np.floor(position))
         hi, weight = min(lo + 1, len(motion) - 1), position - lo
         M = (1.0 - weight) * motion[lo] + weight * motion[hi]
-        u, _, vt = np.linalg.svd(M[:3, :3])
-        R = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt  # the nearest rotation to the blend
+        R = nearest_rotation(M[:3, :3])  # the blend of two frames' rotations is none
         Y = Y @ R.T + M[:3, 3]
     return Y
 
