@@ -286,7 +286,7 @@ def run_stream(args: argparse.Namespace) -> dict[str, Any]:
     import warnings
 
     from facecap.pipelines.animate_scan import animate_scan
-    from facecap.io.read_correspondence import Correspondence
+    from facecap.structures import Correspondence
     from facecap.structures import MarkerSequence
 
     if args.sink == "null":

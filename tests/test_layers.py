@@ -29,12 +29,10 @@ KNOWN_DEBT = {
     # the jobs still live in solver packages (issue 29 item 1: facecap/pipelines)
     "arrow muscles -> report", "arrow muscles -> runner",
     "private facecap.demo <- facecap.muscles.solve_muscle_take",
-    # io's writer calls the exports and the report page; its exports run a PCA and decimate a mesh;
-    # the conditioned take's file holds a markers record (issue 29 item 2: io as file formats only)
-    "arrow io -> report", "arrow io -> deform", "arrow io -> markers", "arrow io -> mesh",
+    # io's writer calls the exports and the report page; its exports run a PCA and decimate a mesh
+    # (issue 29 item 2: io as file formats only)
+    "arrow io -> report", "arrow io -> deform", "arrow io -> mesh",
     "private facecap.mesh.review_mesh <- facecap.io.write_gltf",
-    # check_take_units needs io's Correspondence, a record (issue 29 item 2: records in structures)
-    "arrow units -> io", "circle structures units", "private facecap.report.describe <- facecap.units",
     # the anatomy's landmarks read the bundled sample (issue 29 item 3)
     "arrow anatomy -> synth",
     # helpers shared by the modules of one subpackage, still private (issue 29 item 3: small public

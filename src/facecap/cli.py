@@ -85,7 +85,7 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     from .io.read_mesh import read_mesh
     from .io.atomic_write import recorded_path
     from .io.write_performance import check_result_destination
-    from .units import check_take_units
+    from .markers.check_take_units import check_take_units
 
     check_result_destination(args.out, overwrite=args.overwrite)  # before reading anything
     auto = args.scan_units.strip().lower() == "auto"

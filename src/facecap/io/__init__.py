@@ -55,8 +55,8 @@ from __future__ import annotations
 
 from .atomic_write import (atomic_folder, atomic_path, atomic_write_text, check_file_destination,
                            check_folder_destination, ensure_folder, final_path, recorded_path, resolve_recorded_path)
-from .read_correspondence import (MAP_FORMATS, Correspondence, CorrespondenceMatch, match_correspondence,
-                                  read_correspondence)
+from ..structures import Correspondence  # the record read_correspondence returns (facecap.structures)
+from .read_correspondence import MAP_FORMATS, CorrespondenceMatch, match_correspondence, read_correspondence
 from .mocap_correspondence import read_mocap_correspondence, write_mocap_correspondence
 from .read_markers import MARKER_FORMATS, MARKER_SUFFIXES, read_markers
 from .read_mesh import MESH_FORMATS, MESH_SUFFIXES, read_mesh

@@ -204,7 +204,8 @@ def solve_muscle_take(
     from ..deform.marker_offsets import marker_ring
     from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
     from ..io.export_result import parse_export_formats
-    from ..io.read_correspondence import Correspondence, read_correspondence
+    from ..io.read_correspondence import read_correspondence
+    from ..structures import Correspondence
     from ..io.read_markers import read_markers
     from ..io.write_performance import check_result_destination, import_writers
     from ..runner import run_frames

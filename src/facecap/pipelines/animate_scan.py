@@ -26,7 +26,6 @@ from ..deform.thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, Unm
 from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
 from ..errors import FacecapWarning, MarkerError
 from ..io.export_result import parse_export_formats
-from ..io.read_correspondence import Correspondence
 from ..io.result_rig import ResultRig
 from ..io.write_performance import PerformanceWriter, import_writers
 from ..markers.condition_take import moving_stable_markers
@@ -35,8 +34,9 @@ from ..markers.prepare_take import (DEFAULT_REST_AVERAGE_S, MIN_DRIVING_MARKERS,
                                     check_take_against_map, head_pose_in_scan, prepare_markers, rest_average)
 from ..mesh.check_mesh import check_mesh
 from ..mesh.factor_spd import Backend, load_backend
-from ..structures import MarkerSequence, Mesh
-from ..units import check_take_units, mm_per_unit
+from ..structures import Correspondence, MarkerSequence, Mesh
+from ..markers.check_take_units import check_take_units
+from ..units import mm_per_unit
 from ..validate import as_positive
 
 __all__ = ["animate_scan", "AnimationResult", "OFFSET_WARNING_MM"]
@@ -189,7 +189,7 @@ def animate_scan(
     MeshError
         If the scan's size disagrees with the markers' by a length unit (a
         scan in metres read as mm), naming the likely unit; see
-        :func:`facecap.units.check_take_units`, which can also convert.
+        :func:`facecap.markers.check_take_units`, which can also convert.
     """
     check_take_units(scan, markers, correspondence, rest_frame=rest_frame)
     exports = parse_export_formats(exports)  # names and optional packages, before the set-up
