@@ -22,11 +22,17 @@ In the order a user meets them:
 - :func:`write_mdd` and :func:`write_pc2` (``write_point_cache.py``): streamed
   MDD and PC2 point caches (Blender's Mesh Cache modifier, 3ds Max's Point
   Cache); :func:`write_alembic` (``write_alembic.py``): a streamed Alembic
-  archive (the optional alembic3d is imported only when one is written).
+  archive (the optional alembic3d is imported only when one is written, by
+  :func:`import_alembic`). The checks these streamed writers share are in
+  ``frame_blocks.py`` (:func:`check_frame_blocks`, :func:`as_frame_count`,
+  :func:`path_with_suffix`); :func:`check_uvs` (``write_mesh.py``) checks the UVs
+  a mesh writer writes.
 - :func:`write_gltf` (``write_gltf.py``): a ``.glb`` review file, the mesh in
-  metres with morph targets, their weights animation and marker nodes.
+  metres with morph targets, their weights animation and marker nodes
+  (:func:`triangle_corners`: a triangle's corners among the polygons' corners).
 - :class:`ResultRig` (``result_rig.py``): the exact compact form of a result
-  linear in per-frame coefficients (``rig/``), :func:`write_rig` / :func:`read_rig`;
+  linear in per-frame coefficients (``rig/``), :func:`write_rig` / :func:`read_rig`
+  (:func:`check_frame_range` checks the frames asked of a result);
   :func:`read_result` (``read_result.py``) opens any finished result folder and
   gives its frames lazily from ``vertices.npy`` or the rig;
   :func:`export_result` (``export_result.py``) writes a finished result to
@@ -64,7 +70,7 @@ from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditi
 from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
-from .write_mesh import write_mesh
+from .write_mesh import check_uvs, write_mesh
 from .write_performance import (
     EXPORT_FORMATS,
     STREAMED_FORMATS,
@@ -75,10 +81,12 @@ from .write_performance import (
     read_performance_info,
 )
 from .write_usd import UsdPerformanceWriter
+from .frame_blocks import as_frame_count, check_frame_blocks, path_with_suffix
 from .write_point_cache import write_mdd, write_pc2
-from .write_alembic import write_alembic
-from .write_gltf import MAX_MORPH_TARGETS, MORPH_GPU_BUDGET_BYTES, MORPH_GPU_BYTES_PER_VERTEX_TARGET, write_gltf
-from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, read_rig, write_rig
+from .write_alembic import import_alembic, write_alembic
+from .write_gltf import (MAX_MORPH_TARGETS, MORPH_GPU_BUDGET_BYTES, MORPH_GPU_BYTES_PER_VERTEX_TARGET, triangle_corners,
+                         write_gltf)
+from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, check_frame_range, read_rig, write_rig
 from .read_result import MESH_FILE, Result, read_result
 from .write_usd_blendshapes import (DEFAULT_BLENDSHAPE_TOLERANCE_MM, DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES,
                                     write_usd_blendshapes)
@@ -121,6 +129,13 @@ __all__ = [
     "write_mdd",
     "write_pc2",
     "write_alembic",
+    "import_alembic",
+    "check_frame_blocks",
+    "as_frame_count",
+    "path_with_suffix",
+    "check_uvs",
+    "triangle_corners",
+    "check_frame_range",
     "STREAMED_FORMATS",
     "file_sizes",
     "check_result_destination",

@@ -83,9 +83,9 @@ def parse_export_formats(text: str | Iterable[str]) -> list[str]:
     if unknown:
         raise InputError(f"--export: unknown format(s) {unknown}; choose from {', '.join(EXPORT_FORMATS)}")
     if "abc" in formats:  # the optional writer's package, checked before any long work
-        from .write_alembic import _import_alembic
+        from .write_alembic import import_alembic
 
-        _import_alembic()
+        import_alembic()
     return formats
 
 
