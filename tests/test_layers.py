@@ -28,10 +28,8 @@ ARCHITECTURE = ROOT / "docs" / "architecture.md"
 KNOWN_DEBT = {
     # the jobs still live in solver packages (issue 29 item 1: facecap/pipelines)
     "arrow muscles -> report", "arrow muscles -> runner",
+    "arrow muscles -> pipelines",  # finish_result and import_writers, the jobs' shared end
     "private facecap.demo <- facecap.muscles.solve_muscle_take",
-    # io's writer calls the exports and the report page; its exports run a PCA and decimate a mesh
-    # (issue 29 item 2: io as file formats only)
-    "arrow io -> report", "arrow io -> deform", "arrow io -> mesh",
     # the anatomy's landmarks read the bundled sample (issue 29 item 3)
     "arrow anatomy -> synth",
     # helpers shared by the modules of one subpackage, still private (issue 29 item 3: small public

@@ -21,7 +21,7 @@ from ..errors import FileFormatError, InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
 from .result_rig import ResultRig, check_frame_range, read_rig
-from .write_performance import file_sizes, read_performance_info
+from .result_layout import file_sizes, read_performance_info
 
 __all__ = ["read_result", "Result", "MESH_FILE"]
 

@@ -342,7 +342,7 @@ class _Source(NamedTuple):
 
 def _read_source(result_dir: str | os.PathLike[str]) -> _Source:
     """The solved controls of a ``solve-muscles`` result folder (errors name the file)."""
-    from ..io.write_performance import read_performance_info
+    from ..io.result_layout import read_performance_info
     from .solve_muscle_take import ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE
 
     folder = Path(result_dir)
@@ -458,9 +458,10 @@ def edit_muscles(
         positive, a model folder other than the one the take was solved on.
     """
     from ..anatomy import load_anatomy
-    from ..io.export_result import parse_export_formats
+    from ..io.result_layout import parse_export_formats
     from ..io.atomic_write import resolve_recorded_path
-    from ..io.write_performance import check_result_destination, import_writers
+    from ..io.write_performance import check_result_destination
+    from ..pipelines.finish_result import import_writers
     from .muscle_frame_stage import model_folder_sha256
     from .solve_muscle_take import write_muscle_result
 

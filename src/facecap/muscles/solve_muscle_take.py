@@ -172,7 +172,7 @@ def solve_muscle_take(
     extra_metadata : mapping, optional
         Added to ``performance.json``.
     export_options : mapping, optional
-        Passed to :func:`facecap.io.export_result` (e.g. ``export_frame``).
+        Passed to :func:`facecap.pipelines.export_result` (e.g. ``export_frame``).
     overwrite : bool, default False
         Replace an earlier result in ``out_dir``; without it one is refused before any work
         (:func:`facecap.io.write_performance.check_result_destination`) and again at the end.
@@ -203,11 +203,12 @@ def solve_muscle_take(
     from ..markers.prepare_take import DEFAULT_REST_AVERAGE_S, head_pose_in_scan, prepare_markers, rest_average
     from ..deform.marker_offsets import marker_ring
     from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
-    from ..io.export_result import parse_export_formats
+    from ..io.result_layout import parse_export_formats
     from ..io.read_correspondence import read_correspondence
     from ..structures import Correspondence
     from ..io.read_markers import read_markers
-    from ..io.write_performance import check_result_destination, import_writers
+    from ..io.write_performance import check_result_destination
+    from ..pipelines.finish_result import import_writers
     from ..runner import run_frames
     from ..structures import MarkerSequence
     from .marker_embedding import marker_embedding
@@ -505,7 +506,7 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float,
     desc : str
         The progress bar's label.
     export_options : mapping, optional
-        Passed to :func:`facecap.io.export_result`.
+        Passed to :func:`facecap.pipelines.export_result`.
     overwrite : bool, default False
         Replace an earlier result in ``out_dir`` (:class:`~facecap.io.PerformanceWriter`).
 
@@ -515,6 +516,7 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float,
         The finished folder.
     """
     from ..io.write_performance import PerformanceWriter
+    from ..pipelines.finish_result import finish_result
 
     t = time.perf_counter() if write_started is None else write_started
     frames = np.asarray(frames, dtype=np.int64).reshape(-1)
@@ -541,4 +543,4 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Any, rate: float,
         report["timings"] = timings
         writer.path("report.json").write_text(json.dumps(report, indent=1))
         metadata["timings"] = timings
-        return writer.finish(metadata)
+        return finish_result(writer, metadata)

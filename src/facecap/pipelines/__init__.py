@@ -20,6 +20,14 @@ calls the solver packages (arrays in, arrays out), and writes the result through
   performance from bases and weights, as ``blend`` writes it.
 - :func:`map_markers` (``map_markers.py``): ``facecap map``, a take's markers placed on a scan and
   written as ``map.json`` with its report and picture (:func:`map_side_files` names those two).
+- :func:`finish_result` (``finish_result.py``): the end every job's result folder shares: the
+  exports made from the finished frames, ``review.html`` and ``report.html``, then the writer's
+  rename; :func:`import_writers` imports what they need ahead of time.
+- :func:`export_result` (``export_result.py``): ``facecap export`` (and ``--export``), a finished
+  result written to artists' formats; its glTF review file is :func:`write_gltf_review`
+  (``write_gltf_review.py``: a decimated review mesh and the take's principal morph targets).
+- :func:`view_result` (``view_result.py``): ``facecap view``, the review page of a result (its
+  glTF made if missing, the error heat map against a truth) and its report.
 
 The other commands' jobs still live in their solver packages (issue 29): ``solve-muscles`` and
 ``edit-muscles`` in :mod:`facecap.muscles`.
@@ -33,11 +41,15 @@ from __future__ import annotations
 from .animate_scan import OFFSET_WARNING_MM, AnimationResult, animate_scan
 from .blend_take import blend_take
 from .capture_wrinkles import WrinkleCapture, capture_wrinkles
+from .export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES, MAX_ERROR_PASS_FLOPS, export_result
+from .finish_result import finish_result, import_writers
 from .map_markers import map_markers, map_side_files
 from .plan_scans import conditioned_take_path, plan_scans
 from .register_planned_scans import register_planned_scans
 from .replay_conditioning import replay_conditioning
+from .view_result import ERROR_ROWS, view_result
 from .write_blended_performance import write_blended_performance
+from .write_gltf_review import write_gltf_review
 
 __all__ = [
     "animate_scan",
@@ -53,4 +65,13 @@ __all__ = [
     "write_blended_performance",
     "map_markers",
     "map_side_files",
+    "finish_result",
+    "import_writers",
+    "export_result",
+    "DEFAULT_GLTF_TARGETS",
+    "DEFAULT_REVIEW_VERTICES",
+    "MAX_ERROR_PASS_FLOPS",
+    "write_gltf_review",
+    "view_result",
+    "ERROR_ROWS",
 ]
