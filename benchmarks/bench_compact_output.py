@@ -89,7 +89,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--markdown", action="store_true")
     args = p.parse_args(argv)
 
-    from facecap.io import export_result, read_result
+    from facecap.io import read_result
+    from facecap.pipelines import export_result
 
     work = Path(args.work)
     shutil.rmtree(work, ignore_errors=True)

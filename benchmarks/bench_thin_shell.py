@@ -184,6 +184,7 @@ def _null_sink() -> None:
 def run_speed(args: argparse.Namespace) -> dict[str, Any]:
     from facecap.deform.basis_product import BasisProduct
     from facecap.io.write_performance import PerformanceWriter
+    from facecap.pipelines.finish_result import finish_result
 
     mesh, markers, motion = _inputs(args.case, args.frames)
     solver, w_setup = _build_solver(mesh, markers, keep_factor=True)
@@ -250,7 +251,7 @@ def run_speed(args: argparse.Namespace) -> dict[str, Any]:
             with Window() as w:
                 with PerformanceWriter(dest, mesh=scan, rate=RATE_HZ, n_frames=T) as writer:
                     stream_frames(solver, writer, disp32, rest32, args.batch)
-                    writer.finish({"benchmark": True})
+                    finish_result(writer, {"benchmark": True})
             with Window() as w_sync:
                 os.sync()
             size = (dest / "vertices.npy").stat().st_size
@@ -286,7 +287,7 @@ def run_stream(args: argparse.Namespace) -> dict[str, Any]:
     import warnings
 
     from facecap.pipelines.animate_scan import animate_scan
-    from facecap.io.read_correspondence import Correspondence
+    from facecap.structures import Correspondence
     from facecap.structures import MarkerSequence
 
     if args.sink == "null":

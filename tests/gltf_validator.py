@@ -15,6 +15,9 @@ import subprocess
 import threading
 from pathlib import Path
 
+import numpy as np
+import pygltflib
+
 ROOT = Path(__file__).resolve().parents[1]
 TOOLS = ROOT / "tools" / "gltf-validator"
 _install_lock = threading.Lock()
@@ -70,3 +73,31 @@ def decode_meshopt(path: str | Path, out_dir: str | Path) -> list[int]:
     the indices of the decoded bufferViews.
     """
     return json.loads(_node("decode_meshopt.mjs", str(path), str(out_dir)))["decoded"]
+
+
+def assert_valid(path: Path) -> dict:
+    """Zero errors and zero warnings from the Khronos validator (infos listed in the failure message)."""
+    report = validate_gltf(path)
+    errors, warnings = issue_summary(report, 0), issue_summary(report, 1)
+    assert report["issues"]["numErrors"] == 0, errors
+    assert report["issues"]["numWarnings"] == 0, warnings
+    return report
+
+
+COMPONENT_DTYPES = {5126: np.float32, 5125: np.uint32, 5123: np.uint16}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+
+
+def read_accessor(gltf: pygltflib.GLTF2, blob: bytes, index: int) -> np.ndarray:
+    accessor = gltf.accessors[index]
+    view = gltf.bufferViews[accessor.bufferView]
+    dtype = np.dtype(COMPONENT_DTYPES[accessor.componentType])
+    width = _WIDTH[accessor.type]
+    start = (view.byteOffset or 0) + (accessor.byteOffset or 0)
+    data = np.frombuffer(blob, dtype=dtype, count=accessor.count * width, offset=start)
+    return data.reshape(accessor.count, width) if width > 1 else data
+
+
+def load(path: Path) -> tuple[pygltflib.GLTF2, bytes]:
+    gltf = pygltflib.GLTF2().load_binary(str(path))
+    return gltf, gltf.binary_blob()

@@ -26,21 +26,11 @@ PACKAGE = ROOT / "src" / "facecap"
 ARCHITECTURE = ROOT / "docs" / "architecture.md"
 
 KNOWN_DEBT = {
-    # io's writer calls the exports and the report page; its exports run a PCA and decimate a mesh;
-    # the conditioned take's file holds a markers record (issue 29 item 2: io as file formats only)
-    "arrow io -> report", "arrow io -> deform", "arrow io -> markers", "arrow io -> mesh",
-    "private facecap.mesh.review_mesh <- facecap.io.write_gltf",
-    # check_take_units needs io's Correspondence, a record (issue 29 item 2: records in structures)
-    "arrow units -> io", "circle structures units", "private facecap.report.describe <- facecap.units",
     # the anatomy's landmarks read the bundled sample (issue 29 item 3)
     "arrow anatomy -> synth",
     # helpers shared by the modules of one subpackage, still private (issue 29 item 3: small public
     # modules with their own tests)
     "private facecap.blendshapes.select_scan_frames <- facecap.blendshapes.nnls_weights",
-    "private facecap.io.export_result <- facecap.io.write_alembic",
-    "private facecap.io.read_result <- facecap.io.result_rig",
-    "private facecap.io.write_alembic <- facecap.io.write_mesh",
-    "private facecap.io.write_alembic <- facecap.io.write_point_cache",
     "private facecap.markers.choose_temporal_sigma <- facecap.markers.bilateral_filter",
     "private facecap.mesh.check_mesh <- facecap.mesh.weld_duplicate_vertices",
     "private facecap.registration.align_albedo <- facecap.registration.refine_registration",

@@ -85,7 +85,7 @@ def _cmd_animate(args: argparse.Namespace) -> int:
     from .io.read_mesh import read_mesh
     from .io.atomic_write import recorded_path
     from .io.write_performance import check_result_destination
-    from .units import check_take_units
+    from .markers.check_take_units import check_take_units
 
     check_result_destination(args.out, overwrite=args.overwrite)  # before reading anything
     auto = args.scan_units.strip().lower() == "auto"
@@ -320,8 +320,8 @@ def _add_export_frame(p: argparse.ArgumentParser) -> None:
 
 def _add_output_options(p: argparse.ArgumentParser) -> None:
     """What a command that writes a result writes: exports, vertices.npy, the rig's precision."""
-    from .io.export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES
-    from .io.write_performance import EXPORT_FORMATS
+    from .io.result_layout import EXPORT_FORMATS
+    from .pipelines.export_result import DEFAULT_GLTF_TARGETS, DEFAULT_REVIEW_VERTICES
 
     p.add_argument("--export", default="", help=f"exports, comma-separated: {', '.join(EXPORT_FORMATS)}")
     _add_export_frame(p)
@@ -341,7 +341,7 @@ def _add_output_options(p: argparse.ArgumentParser) -> None:
 
 def _output_options(args: argparse.Namespace) -> dict:
     """The keyword arguments of :func:`_add_output_options`' options, checked before any long work."""
-    from .io.export_result import parse_export_formats
+    from .io.result_layout import parse_export_formats
 
     if args.gltf_targets < 1 or args.review_vertices < 3:
         raise FacecapError("--gltf-targets and --review-vertices: expected positive counts")
@@ -379,7 +379,7 @@ def _add_view(sub: argparse._SubParsersAction) -> None:
 
 def _cmd_view(args: argparse.Namespace) -> int:
     from .report.review_page import serve
-    from .report.view_result import view_result
+    from .pipelines.view_result import view_result
 
     if not 0 <= args.port <= 65535:
         raise FacecapError(f"--port: expected 0..65535, got {args.port}")
@@ -393,7 +393,7 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 
 def _add_export(sub: argparse._SubParsersAction) -> None:
-    from .io.write_performance import EXPORT_FORMATS
+    from .io.result_layout import EXPORT_FORMATS
 
     p = sub.add_parser("export", help="export a finished result to other formats")
     p.add_argument("result", help="a facecap result folder")
@@ -409,7 +409,8 @@ def _add_export(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from .io.export_result import export_result, parse_export_formats
+    from .io.result_layout import parse_export_formats
+    from .pipelines.export_result import export_result
     from .io.read_result import read_result
 
     formats = parse_export_formats(args.format)
@@ -715,7 +716,7 @@ def _camera_setup(paths: Sequence[str], videos: Sequence[str], unit: str) -> tup
 
 
 def _cmd_wrinkles(args: argparse.Namespace) -> int:
-    from .io.export_result import parse_export_formats
+    from .io.result_layout import parse_export_formats
     from .pipelines import capture_wrinkles
 
     if len(args.masks) != len(args.video):
@@ -890,7 +891,7 @@ def _cmd_solve_muscles(args: argparse.Namespace) -> int:
     from pathlib import Path
 
     from .io.atomic_write import recorded_path
-    from .io.export_result import parse_export_formats
+    from .io.result_layout import parse_export_formats
     from .io.read_markers import read_markers
     from .io.write_performance import check_result_destination
     from .pipelines import solve_muscle_take
@@ -959,7 +960,7 @@ def _add_edit_muscles(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_edit_muscles(args: argparse.Namespace) -> int:
-    from .io.export_result import parse_export_formats
+    from .io.result_layout import parse_export_formats
     from .pipelines import edit_muscles
 
     exports = parse_export_formats(args.export)  # before any long work

@@ -61,7 +61,7 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     from .io.read_mesh import read_mesh
     from .report import MeshPanel, evaluate_performance, plot_series, render_mesh, render_side_by_side
     from .report.evaluate_result import evaluate_result, read_truth
-    from .report.view_result import view_result
+    from .pipelines.view_result import view_result
     from .synth.generate_performance import generate_performance
     from .synth.ict_sample import load_ict_sample
     from .synth.write_synthetic_case import write_synthetic_case

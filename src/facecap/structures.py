@@ -2,21 +2,30 @@
 
 Algorithms take and return plain arrays; these records only bundle what a file
 holds so that nothing (units, labels, rate, UVs) gets lost on the way. They hold
-no hidden caches.
+no hidden caches. :class:`Mesh` (a scan), :class:`MarkerSequence` (a take),
+:class:`Correspondence` (where each marker sits on the scan: what
+:func:`facecap.io.read_correspondence` reads), :class:`ConditionedTake` (a take
+after :func:`facecap.markers.condition_take`, as
+:func:`facecap.io.write_conditioned_take` stores it) with its
+:class:`TemporalSigmaChoice` (:func:`facecap.markers.choose_temporal_sigma`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 
-from .errors import MarkerError, MeshError
+from .errors import CorrespondenceError, InputError, MarkerError, MeshError
 from .typing import BoolArray, FloatArray, IntArray
 from .units import mm_per_unit, normalize_unit
 from .validate import as_faces, as_marker_positions, as_vertices
 
-__all__ = ["Mesh", "MarkerSequence"]
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+__all__ = ["Mesh", "MarkerSequence", "Correspondence", "ConditionedTake", "TemporalSigmaChoice"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -236,3 +245,170 @@ class MarkerSequence:
     def with_positions(self, positions: FloatArray) -> "MarkerSequence":
         """A copy with other positions (mm), same labels and rate."""
         return replace(self, positions=positions, residuals=None)
+
+
+@dataclass(frozen=True, eq=False)
+class Correspondence:
+    """Where each marker sits on the scan, as a weighted sum of three vertices.
+
+    Marker ``k`` sits at ``sum_j weights[k, j] * V[vertex_indices[k, j]]``
+    for any vertex positions ``V`` of the scan's topology, so the same map
+    follows the scan as it deforms.
+
+    Parameters
+    ----------
+    labels : tuple of str, length K
+        Marker labels, unique.
+    vertex_indices : (K, 3) int64 array
+        The vertices each marker is attached to: the corners of the triangle
+        its point was snapped to, or ``(i, i, i)`` for a vertex-index entry.
+    weights : (K, 3) float64 array
+        Barycentric weights, non-negative, each row summing to 1;
+        ``(1, 0, 0)`` for a vertex-index entry.
+    triangles : (K,) int64 array
+        Triangle each point was snapped to (row of ``mesh.faces``), -1 for a
+        vertex-index entry.
+    snap_distances : (K,) float64 array, mm
+        Distance from a given point to the surface point it was snapped to;
+        0 for a vertex-index entry. A large value usually means the point is
+        in another unit than assumed.
+    source_path : str or None
+        The map file, for error messages.
+    """
+
+    labels: tuple[str, ...]
+    vertex_indices: IntArray
+    weights: FloatArray
+    triangles: IntArray = field(default=None)  # type: ignore[assignment]
+    snap_distances: FloatArray = field(default=None, repr=False)  # type: ignore[assignment]
+    source_path: str | None = None
+
+    def __post_init__(self) -> None:
+        labels = tuple(str(s) for s in self.labels)
+        K = len(labels)
+        idx = np.ascontiguousarray(self.vertex_indices, dtype=np.int64)
+        w = np.ascontiguousarray(self.weights, dtype=np.float64)
+        if idx.shape != (K, 3) or w.shape != (K, 3):
+            raise CorrespondenceError(
+                f"vertex_indices and weights: expected shape ({K}, 3), got {idx.shape} and {w.shape}",
+                path=self.source_path,
+            )
+        if len(set(labels)) != K:
+            raise CorrespondenceError("labels: duplicate marker labels", path=self.source_path)
+        tri = np.full(K, -1, np.int64) if self.triangles is None else np.ascontiguousarray(self.triangles, np.int64)
+        dist = np.zeros(K) if self.snap_distances is None else np.ascontiguousarray(self.snap_distances, np.float64)
+        object.__setattr__(self, "labels", labels)
+        object.__setattr__(self, "vertex_indices", idx)
+        object.__setattr__(self, "weights", w)
+        object.__setattr__(self, "triangles", tri)
+        object.__setattr__(self, "snap_distances", dist)
+
+    def __len__(self) -> int:
+        return len(self.labels)
+
+    def points(self, V: Any) -> FloatArray:
+        """Marker positions on a scan with vertex positions ``V``.
+
+        Parameters
+        ----------
+        V : (n, 3) or (T, n, 3) float64 array, mm
+            Vertex positions of the scan's topology (one pose or T poses).
+
+        Returns
+        -------
+        P : (K, 3) or (T, K, 3) float64 array, mm
+            ``P[..., k, :] = sum_j weights[k, j] * V[..., vertex_indices[k, j], :]``.
+
+        Raises
+        ------
+        InputError
+            If ``V`` is not (n, 3) or (T, n, 3) or has fewer vertices than the
+            map refers to.
+        """
+        A = np.asarray(V, dtype=np.float64)
+        if A.ndim not in (2, 3) or A.shape[-1] != 3:
+            raise InputError(f"V: expected shape (n, 3) or (T, n, 3), got {A.shape}")
+        if len(self) and int(self.vertex_indices.max()) >= A.shape[-2]:
+            raise InputError(
+                f"V: the map refers to vertex {int(self.vertex_indices.max())} but V has {A.shape[-2]} vertices"
+            )
+        return np.einsum("kj,...kjd->...kd", self.weights, A[..., self.vertex_indices, :])
+
+    def matrix(self, n_vertices: int) -> sp.csr_matrix:
+        """The map as a sparse (K, n_vertices) matrix ``W`` with ``W @ V == self.points(V)``."""
+        import scipy.sparse as sp  # not at import: ``import facecap`` stays light
+
+        if len(self) and int(self.vertex_indices.max()) >= n_vertices:
+            raise InputError(
+                f"n_vertices: the map refers to vertex {int(self.vertex_indices.max())}, got n_vertices={n_vertices}"
+            )
+        rows = np.repeat(np.arange(len(self)), 3)
+        return sp.csr_matrix(
+            (self.weights.ravel(), (rows, self.vertex_indices.ravel())), shape=(len(self), int(n_vertices))
+        )
+
+    def select(self, labels: tuple[str, ...] | list[str]) -> "Correspondence":
+        """The map restricted to ``labels``, in that order."""
+        index = {s: i for i, s in enumerate(self.labels)}
+        missing = [s for s in labels if s not in index]
+        if missing:
+            raise CorrespondenceError(f"labels not in the map: {missing}", path=self.source_path)
+        rows = np.array([index[s] for s in labels], dtype=np.int64)
+        return Correspondence(
+            labels=tuple(labels),
+            vertex_indices=self.vertex_indices[rows],
+            weights=self.weights[rows],
+            triangles=self.triangles[rows],
+            snap_distances=self.snap_distances[rows],
+            source_path=self.source_path,
+        )
+
+
+class TemporalSigmaChoice(NamedTuple):
+    """The sigma chosen and the cross-validation score of every candidate."""
+
+    sigma_s: float
+    """The candidate with the smallest score, s."""
+    candidates_s: tuple[float, ...]
+    scores_mm2: tuple[float, ...]
+    """Mean squared distance (mm^2) from each scored sample to the filter's prediction of it from the
+    other samples (nearby frames and markers), per candidate."""
+    scored_frames: int
+    """Frames the scores are averaged over (spread over the take; all of it when short)."""
+
+
+@dataclass(frozen=True, eq=False)
+class ConditionedTake:
+    """A take after conditioning, all markers kept in the take's column order.
+
+    Attributes
+    ----------
+    positions : (T, M, 3) float64 array, mm
+        Gap-filled, stabilised (if asked) and filtered positions; NaN only
+        where a marker could not be recovered.
+    filled : (T, M) bool array
+        Samples made up by gap filling.
+    head_rotations, head_translations : (T, 3, 3), (T, 3) float64 arrays or None
+        The stabilising transform of each frame (``x' = R x + t``), if stabilised.
+    stabilization_residual : (T,) float64 array or None, mm
+        RMS misfit of the stable markers after stabilisation.
+    stable_labels : tuple of str
+        Markers the stabilisation used.
+    temporal_sigma_s : float or None
+        The bilateral filter's temporal sigma (s); None where the take was not filtered.
+    temporal_sigma_choice : TemporalSigmaChoice or None
+        How it was chosen, when it was (``temporal_sigma_s='auto'``): every
+        candidate's cross-validation score.
+    head_pose_from : str or None
+        One of :data:`facecap.markers.HEAD_POSE_SOURCES`; None where the take was not stabilised.
+    """
+
+    positions: np.ndarray
+    filled: np.ndarray
+    head_rotations: np.ndarray | None
+    head_translations: np.ndarray | None
+    stabilization_residual: np.ndarray | None
+    stable_labels: tuple[str, ...]
+    temporal_sigma_s: float | None = None
+    temporal_sigma_choice: TemporalSigmaChoice | None = None
+    head_pose_from: str | None = None

@@ -37,9 +37,9 @@ import pytest
 from scipy.spatial import cKDTree
 
 from analytic_case import CaptureCase
-from facecap.pipelines import animate_scan
-from facecap.io import (UsdPerformanceWriter, export_result, read_correspondence, read_markers, read_mesh,
-                        read_result, write_mesh)
+from facecap.pipelines import animate_scan, export_result
+from facecap.io import (UsdPerformanceWriter, read_correspondence, read_markers, read_mesh, read_result,
+                        write_mesh)
 from facecap.io.result_rig import ResultRig
 from facecap.io.write_alembic import write_alembic
 from facecap.io.write_gltf import write_gltf

@@ -9,13 +9,8 @@ import numpy as np
 import pytest
 
 from facecap.errors import CorrespondenceError, FacecapWarning, FileFormatError, InputError
-from facecap.io.read_correspondence import (
-    Correspondence,
-    CorrespondenceMatch,
-    match_correspondence,
-    read_correspondence,
-)
-from facecap.structures import Mesh
+from facecap.io.read_correspondence import CorrespondenceMatch, match_correspondence, read_correspondence
+from facecap.structures import Correspondence, Mesh
 
 
 def _bumpy_grid(seed=0, n=6, unit="mm"):

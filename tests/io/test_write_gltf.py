@@ -6,7 +6,6 @@ import importlib
 from pathlib import Path
 
 import numpy as np
-import pygltflib
 import pytest
 import trimesh
 
@@ -15,7 +14,8 @@ from facecap.errors import InputError
 from facecap.io import write_gltf
 from facecap.mesh import review_mesh
 from facecap.structures import Mesh
-from gltf_validator import decode_meshopt, issue_summary, validate_gltf
+from gltf_validator import (COMPONENT_DTYPES, assert_valid, decode_meshopt, issue_summary, load, read_accessor,
+                            validate_gltf)
 
 write_gltf_module = importlib.import_module("facecap.io.write_gltf")  # facecap.io.write_gltf is the function
 GRID = 12
@@ -55,34 +55,6 @@ def known_take(mesh: Mesh, n_targets: int = 3, n_frames: int = 25) -> tuple[np.n
     weights = np.stack([np.sin(2 * np.pi * (j + 1) * t / t[-1]) for j in range(n_targets)], 1)
     weights += 0.01 * rng.standard_normal(weights.shape)
     return targets, weights
-
-
-def assert_valid(path: Path) -> dict:
-    """Zero errors and zero warnings from the Khronos validator (infos listed in the failure message)."""
-    report = validate_gltf(path)
-    errors, warnings = issue_summary(report, 0), issue_summary(report, 1)
-    assert report["issues"]["numErrors"] == 0, errors
-    assert report["issues"]["numWarnings"] == 0, warnings
-    return report
-
-
-_COMPONENT = {5126: np.float32, 5125: np.uint32, 5123: np.uint16}
-_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
-
-
-def read_accessor(gltf: pygltflib.GLTF2, blob: bytes, index: int) -> np.ndarray:
-    accessor = gltf.accessors[index]
-    view = gltf.bufferViews[accessor.bufferView]
-    dtype = np.dtype(_COMPONENT[accessor.componentType])
-    width = _WIDTH[accessor.type]
-    start = (view.byteOffset or 0) + (accessor.byteOffset or 0)
-    data = np.frombuffer(blob, dtype=dtype, count=accessor.count * width, offset=start)
-    return data.reshape(accessor.count, width) if width > 1 else data
-
-
-def load(path: Path) -> tuple[pygltflib.GLTF2, bytes]:
-    gltf = pygltflib.GLTF2().load_binary(str(path))
-    return gltf, gltf.binary_blob()
 
 
 def test_morph_targets_and_weights_rebuild_every_frame(tmp_path: Path) -> None:
@@ -223,7 +195,7 @@ def test_compressed_file_decodes_to_the_same_bytes(tmp_path: Path) -> None:
         assert gltf_packed.bufferViews[i].byteLength == view.byteLength
         if i in index_views:
             # the TRIANGLES codec keeps each triangle and its winding but may start it at another corner
-            dtype = _COMPONENT[index_views[i]]
+            dtype = COMPONENT_DTYPES[index_views[i]]
             want = np.frombuffer(raw, dtype).reshape(-1, 3)
             tri = np.frombuffer(got, dtype).reshape(-1, 3)
             rotations = [np.roll(tri, k, axis=1) for k in range(3)]

@@ -1,23 +1,6 @@
-"""The output folder's writer: what it imports ahead of time."""
+"""The output folder's writer: the rig beside the caller, an earlier result, the paths it records."""
 
 from __future__ import annotations
-
-import subprocess
-import sys
-
-
-def test_import_writers_imports_each_exports_modules_and_nothing_before():
-    # a fresh interpreter: importing facecap.io loads neither usd-core nor matplotlib; import_writers loads
-    # what the USD export and the report page will need
-    script = (
-        "import sys\n"
-        "from facecap.io import import_writers\n"
-        "assert 'pxr.UsdSkel' not in sys.modules and 'matplotlib.figure' not in sys.modules\n"
-        "import_writers(['usd'])\n"
-        "assert {'pxr.UsdSkel', 'facecap.io.write_usd_blendshapes', 'matplotlib.figure'} <= set(sys.modules)\n"
-    )
-    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
 
 
 def test_the_rig_written_beside_the_caller_is_on_disk_at_finish_and_its_failure_loses_nothing(tmp_path, monkeypatch):
@@ -100,4 +83,24 @@ def test_source_files_are_recorded_final(tmp_path, monkeypatch):
     # relative to the working folder given: recorded absolute; inside the result: relative to it; None kept
     assert info["source_files"] == {"markers": str(tmp_path / "take.c3d"), "scan": None,
                                     "footage": [str(tmp_path / "a"), str(tmp_path / "b")], "report": "x.json"}
-    assert ": res</title>" in (out / "report.html").read_text()  # the folder, not its staging name
+
+
+def test_finish_writes_the_metadata_once_and_lists_every_file(tmp_path):
+    import json
+
+    import pytest
+
+    from facecap.errors import InputError
+    from facecap.io import PerformanceWriter
+
+    mesh, frames = _square(tmp_path)
+    with PerformanceWriter(tmp_path / "res", mesh=mesh, rate=30.0, n_frames=3) as writer:
+        writer.write_frames(0, frames)
+        staging = writer.write_metadata({"method": "test"})
+        (staging / "extra.txt").write_text("added between the two")
+        with pytest.raises(InputError, match="written already"):
+            writer.write_metadata({})
+        out = writer.finish()
+    info = json.loads((out / "performance.json").read_text())
+    assert info["method"] == "test" and info["files"]["extra.txt"] == 21
+    assert set(info["files"]) == {"extra.txt", "faces.npy", "mesh.npz", "vertices.npy"}

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from pxr import Usd, UsdGeom, UsdSkel, UsdValidation
 
-from facecap.pipelines import animate_scan
+from facecap.pipelines import animate_scan, export_result
 from facecap.errors import InputError
-from facecap.io import (ResultRig, export_result, read_correspondence, read_markers, read_mesh, read_result,
+from facecap.io import (ResultRig, read_correspondence, read_markers, read_mesh, read_result,
                         write_usd_blendshapes)
 from facecap.structures import Mesh
 

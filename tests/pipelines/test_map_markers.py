@@ -15,7 +15,7 @@ from matplotlib.image import imread
 
 from facecap.errors import CorrespondenceError, InputError, MarkerError, MeshError
 from facecap.io import read_correspondence, read_markers, read_mesh
-from facecap.io.read_correspondence import Correspondence
+from facecap.structures import Correspondence
 from facecap.pipelines import map_markers, map_side_files
 from facecap.synth import write_synthetic_case
 from marker_map_cases import HEADBAND, map_case

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from facecap.errors import CorrespondenceError
-from facecap.io.read_correspondence import Correspondence
+from facecap.structures import Correspondence
 from facecap.registration import MAP_CHECK_MM, check_marker_map
 from marker_map_cases import HEADBAND, map_case
 

@@ -14,26 +14,39 @@ In the order a user meets them:
 - :func:`write_mocap_correspondence` / :func:`read_mocap_correspondence`
   (``mocap_correspondence.py``): a result's ``correspondence.npz``, the map from
   its face back into the capture's frame, where cameras are calibrated.
+- ``result_layout.py``: the result folder's layout, in one place: its file names
+  (:data:`PERFORMANCE_FILE`, :data:`REST_OBJ_FILE`), the exports
+  (:data:`EXPORT_FORMATS`, :data:`STREAMED_FORMATS`, :data:`EXPORT_FRAMES`,
+  :data:`WORLD_FRAME_FORMATS`), :func:`parse_export_formats`, the files each
+  export writes (:func:`export_files`), the files ``performance.json`` lists
+  (:func:`file_sizes`), and :func:`read_performance_info`, which reads it back.
 - :class:`PerformanceWriter` (``write_performance.py``): the streamed output
-  folder every command writes; :func:`read_performance_info` reads its
-  metadata back; :func:`import_writers` imports what its exports will need
-  ahead of time. :class:`UsdPerformanceWriter` (``write_usd.py``) is its USD
-  export (usd-core is imported only when a USD file is written).
+  folder every command writes: the frames, the rig, the metadata, then the
+  rename; :func:`check_result_destination` refuses a destination before a job's
+  long work. :class:`UsdPerformanceWriter` (``write_usd.py``) is its USD
+  export (usd-core is imported only when a USD file is written). The exports
+  made from a finished folder and the run's pages are the job's
+  (:func:`facecap.pipelines.finish_result`, :func:`facecap.pipelines.export_result`).
 - :func:`write_mdd` and :func:`write_pc2` (``write_point_cache.py``): streamed
   MDD and PC2 point caches (Blender's Mesh Cache modifier, 3ds Max's Point
   Cache); :func:`write_alembic` (``write_alembic.py``): a streamed Alembic
-  archive (the optional alembic3d is imported only when one is written).
+  archive (the optional alembic3d is imported only when one is written, by
+  :func:`import_alembic`). The checks these streamed writers share are in
+  ``frame_blocks.py`` (:func:`check_frame_blocks`, :func:`as_frame_count`,
+  :func:`path_with_suffix`); :func:`check_uvs` (``write_mesh.py``) checks the UVs
+  a mesh writer writes.
 - :func:`write_gltf` (``write_gltf.py``): a ``.glb`` review file, the mesh in
-  metres with morph targets, their weights animation and marker nodes.
+  metres with morph targets, their weights animation and marker nodes
+  (:func:`triangle_corners`: a triangle's corners among the polygons' corners).
 - :class:`ResultRig` (``result_rig.py``): the exact compact form of a result
-  linear in per-frame coefficients (``rig/``), :func:`write_rig` / :func:`read_rig`;
+  linear in per-frame coefficients (``rig/``), :func:`write_rig` / :func:`read_rig`
+  (:func:`check_frame_range` checks the frames asked of a result);
   :func:`read_result` (``read_result.py``) opens any finished result folder and
   gives its frames lazily from ``vertices.npy`` or the rig;
-  :func:`export_result` (``export_result.py``) writes a finished result to
-  artists' formats, among them :func:`write_usd_blendshapes`
-  (``write_usd_blendshapes.py``): the rig as UsdSkel blend shapes, and
-  :func:`write_gltf_review` (``gltf_review.py``): the glTF review file; both keep
-  their weights in [0, 1] (:func:`to_unit_range`, ``weight_ranges.py``).
+  :func:`write_usd_blendshapes` (``write_usd_blendshapes.py``): the rig (or the
+  principal components its caller computed) as UsdSkel blend shapes, its
+  weights in [0, 1] (:func:`to_unit_range`, ``weight_ranges.py``), as the
+  glTF review file's are.
 - :func:`write_scan_plan` / :func:`read_scan_plan` (``scan_plan.py``) and
   :func:`write_registered_scans` / :func:`read_registered_scans`
   (``registered_scans.py``): the files of the scan workflow (``plan.json``, the
@@ -55,8 +68,8 @@ from __future__ import annotations
 
 from .atomic_write import (atomic_folder, atomic_path, atomic_write_text, check_file_destination,
                            check_folder_destination, ensure_folder, final_path, recorded_path, resolve_recorded_path)
-from .read_correspondence import (MAP_FORMATS, Correspondence, CorrespondenceMatch, match_correspondence,
-                                  read_correspondence)
+from ..structures import Correspondence  # the record read_correspondence returns (facecap.structures)
+from .read_correspondence import MAP_FORMATS, CorrespondenceMatch, match_correspondence, read_correspondence
 from .mocap_correspondence import read_mocap_correspondence, write_mocap_correspondence
 from .read_markers import MARKER_FORMATS, MARKER_SUFFIXES, read_markers
 from .read_mesh import MESH_FORMATS, MESH_SUFFIXES, read_mesh
@@ -64,35 +77,31 @@ from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditi
 from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
-from .write_mesh import write_mesh
-from .write_performance import (
+from .write_mesh import check_uvs, write_mesh
+from .result_layout import (
     EXPORT_FORMATS,
+    EXPORT_FRAMES,
+    PERFORMANCE_FILE,
+    REST_OBJ_FILE,
     STREAMED_FORMATS,
-    PerformanceWriter,
-    check_result_destination,
+    WORLD_FRAME_FORMATS,
+    export_files,
     file_sizes,
-    import_writers,
+    parse_export_formats,
     read_performance_info,
 )
+from .write_performance import PerformanceWriter, check_result_destination
 from .write_usd import UsdPerformanceWriter
+from .frame_blocks import as_frame_count, check_frame_blocks, path_with_suffix
 from .write_point_cache import write_mdd, write_pc2
-from .write_alembic import write_alembic
-from .write_gltf import MAX_MORPH_TARGETS, MORPH_GPU_BUDGET_BYTES, MORPH_GPU_BYTES_PER_VERTEX_TARGET, write_gltf
-from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, read_rig, write_rig
+from .write_alembic import import_alembic, write_alembic
+from .write_gltf import (MAX_MORPH_TARGETS, MORPH_GPU_BUDGET_BYTES, MORPH_GPU_BYTES_PER_VERTEX_TARGET, triangle_corners,
+                         write_gltf)
+from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, check_frame_range, read_rig, write_rig
 from .read_result import MESH_FILE, Result, read_result
 from .write_usd_blendshapes import (DEFAULT_BLENDSHAPE_TOLERANCE_MM, DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES,
                                     write_usd_blendshapes)
 from .weight_ranges import UnitRangeWeights, to_unit_range
-from .gltf_review import write_gltf_review
-from .export_result import (
-    DEFAULT_GLTF_TARGETS,
-    DEFAULT_REVIEW_VERTICES,
-    EXPORT_FRAMES,
-    WORLD_FRAME_FORMATS,
-    export_files,
-    export_result,
-    parse_export_formats,
-)
 
 __all__ = [
     "write_gltf",
@@ -116,15 +125,23 @@ __all__ = [
     "write_mocap_correspondence",
     "PerformanceWriter",
     "EXPORT_FORMATS",
+    "PERFORMANCE_FILE",
+    "REST_OBJ_FILE",
     "read_performance_info",
     "UsdPerformanceWriter",
     "write_mdd",
     "write_pc2",
     "write_alembic",
+    "import_alembic",
+    "check_frame_blocks",
+    "as_frame_count",
+    "path_with_suffix",
+    "check_uvs",
+    "triangle_corners",
+    "check_frame_range",
     "STREAMED_FORMATS",
     "file_sizes",
     "check_result_destination",
-    "import_writers",
     "ResultRig",
     "write_rig",
     "read_rig",
@@ -137,16 +154,12 @@ __all__ = [
     "DEFAULT_BLENDSHAPE_TOLERANCE_MM",
     "DEFAULT_USD_COMPONENTS",
     "USD_EXACT_MAX_BYTES",
-    "export_result",
     "to_unit_range",
     "UnitRangeWeights",
-    "write_gltf_review",
     "parse_export_formats",
     "export_files",
     "EXPORT_FRAMES",
     "WORLD_FRAME_FORMATS",
-    "DEFAULT_GLTF_TARGETS",
-    "DEFAULT_REVIEW_VERTICES",
     "write_scan_plan",
     "read_scan_plan",
     "PLAN_FORMAT",

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError
-from ..markers.condition_take import ConditionedTake
+from ..structures import ConditionedTake
 from .atomic_write import atomic_path
 
 __all__ = ["file_sha256", "read_conditioned_take", "write_conditioned_take", "CONDITIONED_TAKE_FORMAT"]

@@ -20,8 +20,8 @@ import numpy as np
 from ..errors import FileFormatError, InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
-from .result_rig import ResultRig, _frame_range, read_rig
-from .write_performance import file_sizes, read_performance_info
+from .result_rig import ResultRig, check_frame_range, read_rig
+from .result_layout import file_sizes, read_performance_info
 
 __all__ = ["read_result", "Result", "MESH_FILE"]
 
@@ -82,14 +82,14 @@ class Result:
         From ``vertices.npy`` when present (a copy out of the memory map),
         else evaluated from the rig.
         """
-        start, stop = _frame_range(start, stop, self.n_frames)
+        start, stop = check_frame_range(start, stop, self.n_frames)
         if self._vertices is not None:
             return np.array(self._vertices[start:stop], dtype=np.float32)
         return self.rig.frames(start, stop)
 
     def blocks(self, batch_frames: int = 64, *, start: int = 0, stop: int | None = None) -> Iterator[tuple[int, np.ndarray]]:
         """Yield ``(first_frame, frames)`` blocks of at most ``batch_frames`` frames, in order."""
-        start, stop = _frame_range(start, stop, self.n_frames)
+        start, stop = check_frame_range(start, stop, self.n_frames)
         if batch_frames < 1:
             raise InputError(f"batch_frames: expected a positive integer, got {batch_frames}")
         for lo in range(start, stop, batch_frames):

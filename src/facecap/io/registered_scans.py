@@ -9,8 +9,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError
-from ..structures import Mesh
-from ..markers.condition_take import ConditionedTake
+from ..structures import ConditionedTake, Mesh
 from .atomic_write import atomic_folder
 from .conditioned_take import write_conditioned_take
 from .read_mesh import read_mesh

@@ -46,7 +46,7 @@ import numpy as np
 from ..errors import FileFormatError, InputError
 from ..units import mm_per_unit, normalize_unit
 
-__all__ = ["ResultRig", "write_rig", "read_rig", "RIG_FORMAT", "RIG_PRECISIONS"]
+__all__ = ["ResultRig", "write_rig", "read_rig", "RIG_FORMAT", "RIG_PRECISIONS", "check_frame_range"]
 
 RIG_FORMAT = "facecap-rig"
 """``format`` field of ``rig.json``."""
@@ -206,7 +206,7 @@ class ResultRig:
 
     def frames(self, start: int = 0, stop: int | None = None) -> np.ndarray:
         """Frames ``start`` to ``stop`` as a float32 ``(stop - start, n, 3)`` array, in :attr:`units`."""
-        start, stop = _frame_range(start, stop, self.n_frames)
+        start, stop = check_frame_range(start, stop, self.n_frames)
         out = np.empty((stop - start, self.n_vertices, 3), np.float32)
         return self.frames_into(start, stop, out)
 
@@ -345,7 +345,14 @@ def read_rig(folder: str | os.PathLike[str]) -> ResultRig:
     return rig
 
 
-def _frame_range(start: int, stop: int | None, n_frames: int) -> tuple[int, int]:
+def check_frame_range(start: int, stop: int | None, n_frames: int) -> tuple[int, int]:
+    """Frames ``start`` to ``stop`` (None: the end) of a take of ``n_frames``, as ints, checked.
+
+    Raises
+    ------
+    InputError
+        If not ``0 <= start <= stop <= n_frames``.
+    """
     stop = n_frames if stop is None else int(stop)
     start = int(start)
     if not (0 <= start <= stop <= n_frames):

@@ -40,17 +40,25 @@ from ..errors import InputError
 from ..structures import Mesh
 from ..validate import as_positive
 from .atomic_write import atomic_path
-from .write_mesh import _check_uvs
-from .write_point_cache import _as_int32_count, _checked_blocks, _destination
+from .frame_blocks import as_frame_count, check_frame_blocks, path_with_suffix
+from .write_mesh import check_uvs
 
-__all__ = ["write_alembic"]
+__all__ = ["write_alembic", "import_alembic"]
 
 _XFORM_NAME = "Head"
 _MESH_NAME = "Face"
 
 
-def _import_alembic() -> tuple[Any, Any, Any, Any]:
-    """``(Abc, AbcGeom, AbcCoreAbstract, imath)`` from alembic3d, or an InputError naming the extra."""
+def import_alembic() -> tuple[Any, Any, Any, Any]:
+    """``(Abc, AbcGeom, AbcCoreAbstract, imath)`` from alembic3d, the optional package Alembic needs.
+
+    Also how a job checks, before its long work, that an Alembic export can be written.
+
+    Raises
+    ------
+    InputError
+        Naming the extra to install (``pip install "facecap[alembic]"``) when alembic3d is missing.
+    """
     try:
         from alembic3d import Abc, AbcCoreAbstract, AbcGeom
         import imath  # PyImath, shipped inside the alembic3d wheel
@@ -134,10 +142,10 @@ def write_alembic(
     >>> out.stat().st_size > 0
     True
     """
-    final = _destination(path, ".abc")
+    final = path_with_suffix(path, ".abc")
     if not isinstance(mesh, Mesh):
         raise InputError(f"mesh: expected a facecap Mesh, got {type(mesh).__name__}")
-    n_frames = _as_int32_count(n_frames, name="n_frames")
+    n_frames = as_frame_count(n_frames, name="n_frames")
     rate_hz = as_positive(rate, name="rate")
     scale = as_positive(unit_scale, name="unit_scale")
     if not final.parent.is_dir():
@@ -152,7 +160,7 @@ def write_alembic(
         motion = np.asarray(head_motion, dtype=np.float64)
         if motion.shape != (n_frames, 4, 4) or not np.all(np.isfinite(motion)):
             raise InputError(f"head_motion: expected finite ({n_frames}, 4, 4) transforms, got {motion.shape}")
-    modules = _import_alembic()
+    modules = import_alembic()
     with atomic_path(final) as tmp:
         _write_archive(tmp, modules, face_counts, face_indices, uv, blocks, n_frames=n_frames,
                        n_vertices=mesh.n_vertices, rate=rate_hz, scale=scale, path=final, progress=progress,
@@ -185,7 +193,7 @@ def _file_order_uvs(mesh: Mesh, corners: np.ndarray, file_order: np.ndarray) -> 
         uv_indices = np.asarray(corners)
     else:
         uv_indices = np.asarray(mesh.uv_indices)
-        _check_uvs(uvs, uv_indices, corners.size)
+        check_uvs(uvs, uv_indices, corners.size)
     return np.ascontiguousarray(uvs, dtype=np.float32), uv_indices[file_order]
 
 
@@ -237,7 +245,7 @@ def _write_archive(
             uv_sample = AbcGeom.OV2fGeomParamSample(imath.V2fArrayFromBuffer(uv_values), uv_index_array,
                                                    AbcGeom.GeometryScope.kFacevaryingScope)
         with tqdm(total=n_frames, unit="frame", desc="Alembic", disable=not progress, leave=False) as bar:
-            for start, block in _checked_blocks(blocks, n_frames=n_frames, n_vertices=n_vertices, path=path):
+            for start, block in check_frame_blocks(blocks, n_frames=n_frames, n_vertices=n_vertices, path=path):
                 for j in range(block.shape[0]):
                     points = np.multiply(block[j], scale, dtype=np.float32)
                     if scale > 1.0 and not np.all(np.isfinite(points)):  # scaled up past the float32 range

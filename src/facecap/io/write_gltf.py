@@ -53,6 +53,7 @@ __all__ = [
     "MAX_MORPH_TARGETS",
     "MORPH_GPU_BUDGET_BYTES",
     "MORPH_GPU_BYTES_PER_VERTEX_TARGET",
+    "triangle_corners",
 ]
 
 MAX_MORPH_TARGETS = 256
@@ -373,8 +374,26 @@ def _names(names: object, count: int, argument: str, stem: str) -> list[str]:
     return out
 
 
-def _triangle_corners(mesh: Mesh) -> np.ndarray:
-    """Index of each triangle corner into the mesh's corner list (the one ``uv_indices`` follows)."""
+def triangle_corners(mesh: Mesh) -> np.ndarray:
+    """Index of each triangle corner into the mesh's corner list (the one ``uv_indices`` follows).
+
+    Parameters
+    ----------
+    mesh : Mesh
+        Triangles ``faces`` and, when it has them, the polygons they fan.
+
+    Returns
+    -------
+    (m, 3) int64 array
+        ``corners[f, k]``: the polygon corner triangle ``f``'s corner ``k`` is
+        (``3 f + k`` for a triangle mesh without polygons).
+
+    Raises
+    ------
+    InputError
+        If a polygon has fewer than 3 corners, or the triangles are not the
+        fan triangulation of the polygons.
+    """
     m = mesh.n_faces
     if mesh.polygon_sizes is None or mesh.polygon_indices is None:
         return np.arange(3 * m, dtype=np.int64).reshape(m, 3)
@@ -413,7 +432,7 @@ def _split_uv_seams(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray | No
         if uvs.shape[0] != n:
             raise InputError(f"mesh.uvs: without uv_indices expected one UV per vertex ({n}), got {uvs.shape[0]}")
         return mesh.faces, np.arange(n, dtype=np.int64), _gltf_uv(uvs)
-    corners = _triangle_corners(mesh)
+    corners = triangle_corners(mesh)
     uv_index = np.asarray(mesh.uv_indices, dtype=np.int64)
     n_corners = corners.size if mesh.polygon_sizes is None else int(mesh.polygon_sizes.sum())
     if uv_index.shape != (n_corners,):

@@ -15,7 +15,7 @@ from ..units import mm_per_unit, normalize_unit
 from ..validate import as_vertices
 from .atomic_write import atomic_path
 
-__all__ = ["write_mesh"]
+__all__ = ["write_mesh", "check_uvs"]
 
 _UV_DECIMALS = 9
 _COLOR_DECIMALS = 6
@@ -121,7 +121,7 @@ def write_mesh(
     sizes, corners = mesh.export_polygons()
     has_uv = mesh.uvs is not None and mesh.uv_indices is not None
     if has_uv:
-        _check_uvs(mesh.uvs, mesh.uv_indices, corners.size)  # type: ignore[arg-type]
+        check_uvs(mesh.uvs, mesh.uv_indices, corners.size)  # type: ignore[arg-type]
 
     if suffix == ".obj":
         if decimals is None:
@@ -146,7 +146,23 @@ def write_mesh(
     return p
 
 
-def _check_uvs(uvs: FloatArray, uv_indices: IntArray, n_corners: int) -> None:
+def check_uvs(uvs: FloatArray, uv_indices: IntArray, n_corners: int) -> None:
+    """Check face-varying UVs before they are written (OBJ, Alembic).
+
+    Parameters
+    ----------
+    uvs : (u, 2) float array
+        Texture coordinates, finite.
+    uv_indices : (c,) int array
+        One row of ``uvs`` per polygon corner.
+    n_corners : int
+        The mesh's polygon corners ``c``.
+
+    Raises
+    ------
+    InputError
+        Naming what is wrong: the shapes, a non-finite UV, or an index out of range.
+    """
     uvs = np.asarray(uvs)
     uv_indices = np.asarray(uv_indices)
     if uvs.ndim != 2 or uvs.shape[1] != 2 or not np.all(np.isfinite(uvs)):

@@ -16,7 +16,7 @@ Layout of a finished folder (see ``docs/output_format.md``):
   (time-sampled points, streamed with the frames) and, made from the finished
   frames through :func:`facecap.io.read_result`, ``performance_rig.usdc``
   (UsdSkel blend shapes), ``performance.glb``, ``.mdd``, ``.pc2``, ``.abc``
-  (:func:`facecap.io.export_result`).
+  (:func:`facecap.pipelines.export_result`, called by :func:`facecap.pipelines.finish_result`).
 - ``report.html``: the run's figures, plots and pictures in one page, linking
   ``review.html`` (the result played in the browser) when a glTF was written.
 - whatever else the caller adds (``report.json``, pictures).
@@ -46,18 +46,9 @@ from ..errors import InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
 from .atomic_write import atomic_folder, check_folder_destination, recorded_path
+from .result_layout import PERFORMANCE_FILE, STREAMED_FORMATS, WORLD_FRAME_FORMATS, file_sizes, parse_export_formats
 
-__all__ = ["PerformanceWriter", "EXPORT_FORMATS", "STREAMED_FORMATS", "import_writers", "read_performance_info",
-           "file_sizes", "check_result_destination"]
-
-EXPORT_FORMATS = ("usd", "gltf", "mdd", "pc2", "abc", "obj", "ply")
-"""Exports ``--export`` accepts besides ``vertices.npy`` and the rig."""
-
-STREAMED_FORMATS = ("usd", "obj", "ply")
-"""Exports written while the frames are computed (the others are made from the finished folder)."""
-
-_MARKER_FILE = "performance.json"
-
+__all__ = ["PerformanceWriter", "check_result_destination"]
 
 class _NpyStream:
     """Append frames to a ``.npy`` file whose header already states the final shape.
@@ -109,7 +100,8 @@ class PerformanceWriter:
         Write ``vertices.npy``. Without it the result needs a rig
         (:meth:`write_rig`), and frames are computed only for streamed exports.
     export_options : dict, optional
-        Passed to :func:`facecap.io.export_result` (e.g. ``gltf_targets``).
+        What the job passes to :func:`facecap.pipelines.export_result` for the exports made from the
+        finished frames (e.g. ``gltf_targets``; :func:`facecap.pipelines.finish_result`).
     overwrite : bool, default False
         Replace an earlier result in ``out_dir``; without it one is refused
         (:class:`~facecap.errors.InputError`), here and again at the rename.
@@ -140,10 +132,8 @@ class PerformanceWriter:
         self.mesh = mesh
         self.rate = float(rate)
         self.n_frames = int(n_frames)
-        from .export_result import parse_export_formats  # names and optional packages: one home
-
         self.exports = tuple(parse_export_formats(exports))
-        self._folder = atomic_folder(self.out_dir, marker_file=_MARKER_FILE, overwrite=overwrite)
+        self._folder = atomic_folder(self.out_dir, marker_file=PERFORMANCE_FILE, overwrite=overwrite)
         self.staging = self._folder.__enter__()
         self._unit_scale = np.float32(1.0 / mm_per_unit(mesh.source_unit))
         self._npy = (_NpyStream(self.staging / "vertices.npy", (self.n_frames, mesh.n_vertices, 3), np.dtype("<f4"))
@@ -160,6 +150,7 @@ class PerformanceWriter:
         for fmt in ("obj", "ply"):
             if fmt in self.exports:
                 (self.staging / fmt).mkdir()
+        self._metadata_written = False
         self._finished = False
 
     def __enter__(self) -> "PerformanceWriter":
@@ -313,13 +304,21 @@ class PerformanceWriter:
         """What a file of this folder records for ``path``: final, relative when inside the folder, else absolute."""
         return recorded_path(path, folder=self.staging)
 
-    def finish(self, metadata: dict[str, Any]) -> Path:
-        """Write the metadata and the exports made from the frames, and move the folder into place.
+    @property
+    def later_exports(self) -> list[str]:
+        """The exports made from the finished frames, not streamed (glTF, point caches, Alembic, USD blend shapes).
 
-        Writes ``faces.npy``, ``mesh.npz`` and ``performance.json``, then the
-        exports that read the finished frames (glTF, point caches, Alembic, USD
-        blend shapes: :func:`facecap.io.export_result`), then lists every file
-        with its size in ``performance.json``.
+        What the job exports into :attr:`staging` between :meth:`write_metadata` and
+        :meth:`finish` (:func:`facecap.pipelines.finish_result`).
+        """
+        return [f for f in self.exports if f not in STREAMED_FORMATS or (f == "usd" and self._rig is not None)]
+
+    def write_metadata(self, metadata: dict[str, Any]) -> Path:
+        """Close the frames and write ``faces.npy``, ``mesh.npz`` and ``performance.json`` into the staging folder.
+
+        After it the staging folder reads as a finished result (:func:`facecap.io.read_result`),
+        so the exports made from the frames and the pages can be written into it
+        before :meth:`finish` moves it into place.
 
         Parameters
         ----------
@@ -332,8 +331,16 @@ class PerformanceWriter:
         Returns
         -------
         Path
-            The finished output folder.
+            The staging folder.
+
+        Raises
+        ------
+        InputError
+            If frames are missing, the result has neither ``vertices.npy`` nor a
+            rig, or the metadata were written already.
         """
+        if self._metadata_written:
+            raise InputError("the result's metadata were written already")
         if self.needs_frames and self.frames_written != self.n_frames:
             raise InputError(f"only {self.frames_written} of {self.n_frames} frames were written")
         if self._npy is None and self._rig is None:
@@ -358,37 +365,43 @@ class PerformanceWriter:
         }
         if isinstance(info.get("source_files"), dict):
             info["source_files"] = {name: self._recorded(value) for name, value in info["source_files"].items()}
-        info_path = self.staging / _MARKER_FILE
-        info_path.write_text(json.dumps(info, indent=2, default=_json_default))
-        later = [f for f in self.exports if f not in STREAMED_FORMATS or (f == "usd" and self._rig is not None)]
-        if later:
-            from .export_result import export_result
+        (self.staging / PERFORMANCE_FILE).write_text(json.dumps(info, indent=2, default=_json_default))
+        self._metadata_written = True
+        return self.staging
 
-            export_result(self.staging, later, progress=self.export_options.pop("progress", False),
-                          skip_streamed=True, **self.export_options)
-            info = json.loads(info_path.read_text())
-        self._write_pages()
+    def finish(self, metadata: dict[str, Any] | None = None) -> Path:
+        """List every file with its size in ``performance.json`` and move the folder into place.
+
+        Writes the metadata first (:meth:`write_metadata`) unless that was done.
+        The exports made from the finished frames and the run's pages are the
+        job's, written between the two (:func:`facecap.pipelines.finish_result`).
+
+        Parameters
+        ----------
+        metadata : dict, optional
+            As for :meth:`write_metadata`; required when it was not called.
+
+        Returns
+        -------
+        Path
+            The finished output folder.
+        """
+        if not self._metadata_written:
+            if metadata is None:
+                raise InputError("finish: the result's metadata are missing (write_metadata or finish(metadata))")
+            self.write_metadata(metadata)
+        elif metadata is not None:
+            raise InputError("finish: the result's metadata were written already")
+        info_path = self.staging / PERFORMANCE_FILE
+        info = json.loads(info_path.read_text())
         info["files"] = file_sizes(self.staging)
         info_path.write_text(json.dumps(info, indent=2, default=_json_default))
         self._folder.__exit__(None, None, None)
         self._finished = True
         return self.out_dir
 
-    def _write_pages(self) -> None:
-        """``report.html`` of the run, and ``review.html`` when the run wrote a glTF (the browser review)."""
-        from ..report.review_page import write_review_page
-        from ..report.view_result import write_run_report
-
-        glb = self.staging / "performance.glb"
-        if glb.is_file():
-            write_review_page(self.staging / "review.html", glb, title=f"facecap: {self.out_dir.name}",
-                              rate=self.rate, n_frames=self.n_frames)
-        write_run_report(self.staging)
-
     def _export_names(self) -> list[str]:
         """The exports as ``performance.json`` lists them: ``mdd_world`` for a point cache in the world frame."""
-        from .export_result import WORLD_FRAME_FORMATS
-
         world = self.export_options.get("export_frame", "stabilized") == "world"
         return [f"{f}_world" if world and f in WORLD_FRAME_FORMATS else f for f in self.exports]
 
@@ -420,32 +433,6 @@ class PerformanceWriter:
             self._folder.__exit__(InputError, InputError("aborted"), None)
 
 
-_WRITER_MODULES = {
-    "usd": ("facecap.io.write_usd", "facecap.io.write_usd_blendshapes", "pxr.Usd", "pxr.UsdGeom", "pxr.UsdSkel"),
-    "gltf": ("facecap.io.gltf_review",),
-}
-"""Modules each export's writers import when they start, beyond what every run needs."""
-
-
-def import_writers(exports: Iterable[str]) -> None:
-    """Import the modules :class:`PerformanceWriter` will need for ``exports`` and the run's report page.
-
-    For a caller that wants the cost (the USD libraries 0.12 s, matplotlib for
-    the report's plots 0.25 s) before its long work rather than at the end, or
-    an import error at once. Call it where no other thread loads a library
-    meanwhile: a compiled module loading on one thread while another thread
-    loads one can deadlock (seen: usd-core's initialisers against MKL's first
-    load inside PARDISO; :func:`facecap.mesh.load_backend` loads MKL's first).
-    """
-    import importlib
-
-    names = ["facecap.report.view_result", "facecap.report.html_report"]  # report.html: every run
-    for fmt in exports:
-        names.extend(_WRITER_MODULES.get(fmt, ()))
-    for name in names:
-        importlib.import_module(name)
-
-
 def check_result_destination(out_dir: str | os.PathLike[str], *, overwrite: bool = False) -> None:
     """Refuse, before a job's long work, an ``out_dir`` :class:`PerformanceWriter` would refuse.
 
@@ -457,28 +444,7 @@ def check_result_destination(out_dir: str | os.PathLike[str], *, overwrite: bool
         folder that cannot be created (the cause). See
         :func:`facecap.io.atomic_write.check_folder_destination`.
     """
-    check_folder_destination(out_dir, marker_file=_MARKER_FILE, overwrite=overwrite)
-
-
-def file_sizes(folder: str | os.PathLike[str]) -> dict[str, int]:
-    """Every file under a result folder (relative path) with its size in bytes, less ``performance.json``.
-
-    What ``performance.json`` lists as ``files``.
-    """
-    root = Path(folder)
-    return {str(p.relative_to(root)): p.stat().st_size
-            for p in sorted(root.rglob("*")) if p.is_file() and p.name != _MARKER_FILE}
-
-
-def read_performance_info(out_dir: str | os.PathLike[str]) -> dict[str, Any]:
-    """Read ``performance.json`` of a finished output folder, or raise InputError."""
-    path = Path(out_dir) / _MARKER_FILE
-    if not path.is_file():
-        raise InputError("is not a finished facecap result (no performance.json)", path=str(out_dir))
-    try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise InputError(f"unreadable performance.json ({exc})", path=str(path)) from None
+    check_folder_destination(out_dir, marker_file=PERFORMANCE_FILE, overwrite=overwrite)
 
 
 def _write_mesh_npz(path: str | os.PathLike[str], mesh: Mesh) -> None:

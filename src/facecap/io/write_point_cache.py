@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import os
 import struct
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -43,14 +43,13 @@ from tqdm.auto import tqdm
 from ..errors import InputError
 from ..validate import as_positive
 from .atomic_write import atomic_path
+from .frame_blocks import as_frame_count, check_frame_blocks, path_with_suffix
 
 __all__ = ["write_mdd", "write_pc2"]
 
 PC2_SIGNATURE = b"POINTCACHE2\0"
 """The 12 bytes a PC2 file starts with."""
 
-_INT32_MAX = 2**31 - 1
-_FLOAT32_MAX = float(np.finfo(np.float32).max)
 _WRITE_BYTES = 32 * 2**20  # frames are converted and written about this many bytes at a time
 _TIMES_PER_WRITE = 2**16  # MDD frame times written this many at a time
 
@@ -113,9 +112,9 @@ def write_mdd(
     >>> out.stat().st_size == 8 + 2 * 4 + 2 * 3 * 12
     True
     """
-    final = _destination(path, ".mdd")
-    n_frames = _as_int32_count(n_frames, name="n_frames")
-    n_vertices = _as_int32_count(n_vertices, name="n_vertices")
+    final = path_with_suffix(path, ".mdd")
+    n_frames = as_frame_count(n_frames, name="n_frames")
+    n_vertices = as_frame_count(n_vertices, name="n_vertices")
     rate_hz = as_positive(rate, name="rate")
     with atomic_path(final) as tmp, open(tmp, "wb") as handle:
         handle.write(struct.pack(">ii", n_frames, n_vertices))
@@ -195,9 +194,9 @@ def write_pc2(
     >>> out.read_bytes()[:12]
     b'POINTCACHE2\\x00'
     """
-    final = _destination(path, ".pc2")
-    n_frames = _as_int32_count(n_frames, name="n_frames")
-    n_vertices = _as_int32_count(n_vertices, name="n_vertices")
+    final = path_with_suffix(path, ".pc2")
+    n_frames = as_frame_count(n_frames, name="n_frames")
+    n_vertices = as_frame_count(n_vertices, name="n_vertices")
     as_positive(rate, name="rate")
     try:
         start = float(start_frame)
@@ -211,90 +210,6 @@ def write_pc2(
         _write_positions(handle, blocks, n_frames=n_frames, n_vertices=n_vertices,
                          dtype=np.dtype("<f4"), path=final, progress=progress, desc="PC2")
     return final
-
-
-# ----------------------------------------------------------------------------- shared
-
-
-def _destination(path: str | os.PathLike[str], suffix: str) -> Path:
-    """``path`` as a Path, checked to end in ``suffix`` (any case)."""
-    p = Path(os.fspath(path))
-    if p.suffix.lower() != suffix:
-        raise InputError(f"path: expected a {suffix} file name, got {str(p)!r}")
-    return p
-
-
-def _as_int32_count(value: Any, *, name: str) -> int:
-    """``value`` as an int in ``[1, 2**31 - 1]`` (the formats store int32 counts), or raise."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= int(value) <= _INT32_MAX:
-        raise InputError(f"{name}: expected a positive integer below 2**31, got {value!r}")
-    return int(value)
-
-
-def _checked_blocks(
-    blocks: Iterable[tuple[int, Any]], *, n_frames: int, n_vertices: int, path: Path
-) -> Iterator[tuple[int, np.ndarray]]:
-    """Yield ``(start, block)`` from ``blocks`` after checking each one; raise at the first bad one.
-
-    The one home of the checks every streamed exporter of frame blocks makes
-    (MDD, PC2, Alembic).
-
-    Parameters
-    ----------
-    blocks : iterable of (int, (b, n, 3) float array)
-        The stream, as the writers take it.
-    n_frames, n_vertices : int
-        The take's frame and vertex counts.
-    path : pathlib.Path
-        The file being written, named in errors.
-
-    Yields
-    ------
-    start : int
-        Index of the block's first frame.
-    block : (b, n, 3) float array
-        The block as given (not copied), finite and within the float32 range.
-
-    Raises
-    ------
-    InputError
-        If an item is not a pair, a block does not start where the previous
-        one ended, has the wrong shape or a non-float dtype, runs past
-        ``n_frames``, holds NaN, infinite or beyond-float32 values, or the
-        stream ends early.
-    """
-    written = 0
-    for item in blocks:
-        try:
-            start, block = item
-        except (TypeError, ValueError):
-            raise InputError(f"blocks: expected (start, block) pairs, got {type(item).__name__}",
-                             path=str(path)) from None
-        if isinstance(start, bool) or not isinstance(start, (int, np.integer)) or int(start) != written:
-            raise InputError(f"blocks: expected the block starting at frame {written} (blocks in order, "
-                             f"without gaps or overlaps), got start={start!r}", path=str(path))
-        arr = np.asarray(block)
-        if arr.ndim != 3 or arr.shape[0] < 1 or arr.shape[1:] != (n_vertices, 3):
-            raise InputError(f"blocks: expected a (b, {n_vertices}, 3) block at frame {written}, "
-                             f"got shape {arr.shape}", path=str(path))
-        if not np.issubdtype(arr.dtype, np.floating):
-            raise InputError(f"blocks: expected float32 positions at frame {written}, got {arr.dtype}",
-                             path=str(path))
-        b = arr.shape[0]
-        if written + b > n_frames:
-            raise InputError(f"blocks: frames {written}..{written + b - 1} run past n_frames={n_frames}",
-                             path=str(path))
-        # One summing pass finds NaN and infinities (they survive a float64 sum; finite float32 cannot overflow it).
-        if not np.isfinite(arr.sum(dtype=np.float64)):
-            bad = written + int(np.flatnonzero(~np.isfinite(arr).all(axis=(1, 2)))[0])
-            raise InputError(f"blocks: frame {bad} contains NaN or infinite values", path=str(path))
-        if arr.dtype.itemsize > 4 and np.abs(arr).max() > _FLOAT32_MAX:  # would turn into inf as float32
-            raise InputError(f"blocks: frames {written}..{written + b - 1} hold values beyond the float32 range",
-                             path=str(path))
-        yield written, arr
-        written += b
-    if written != n_frames:
-        raise InputError(f"blocks: the stream ended after {written} of {n_frames} frames", path=str(path))
 
 
 def _write_positions(
@@ -311,7 +226,7 @@ def _write_positions(
     """Write every frame of ``blocks`` as ``dtype`` xyz triples, a few tens of MB per write call."""
     frames_per_write = max(1, _WRITE_BYTES // (12 * n_vertices))
     with tqdm(total=n_frames, unit="frame", desc=desc, disable=not progress, leave=False) as bar:
-        for _, block in _checked_blocks(blocks, n_frames=n_frames, n_vertices=n_vertices, path=path):
+        for _, block in check_frame_blocks(blocks, n_frames=n_frames, n_vertices=n_vertices, path=path):
             for j in range(0, block.shape[0], frames_per_write):
                 # No copy when the block already is contiguous float32 in the file's byte order.
                 handle.write(np.ascontiguousarray(block[j:j + frames_per_write], dtype=dtype).data)

@@ -28,11 +28,11 @@ contributions add up to at most ``tolerance`` at any vertex and frame (the
 bound is written into the layer's documentation and returned).
 
 Those exact shapes cost ``3 K n`` vectors: 2.3 GB at 700k vertices and 90
-markers, where the rig itself is 0.26 GB. With ``max_shapes`` the stage holds
-the take's first principal components instead
-(:func:`facecap.deform.principal_targets_from_rig`), and the error they leave
-(RMS over the take, exact; the maximum where asked) is returned and written
-into the layer's documentation. :func:`facecap.io.export_result` chooses:
+markers, where the rig itself is 0.26 GB. Given ``principal_targets`` (the
+take's first principal components, computed by the caller with
+:func:`facecap.deform.principal_targets_from_rig`), the stage holds those
+instead, and the error they leave (``principal_error``) is returned and written
+into the layer's documentation. :func:`facecap.pipelines.export_result` chooses:
 exact up to :data:`USD_EXACT_MAX_BYTES` of shapes, principal components beyond.
 """
 
@@ -61,9 +61,6 @@ DEFAULT_BLENDSHAPE_TOLERANCE_MM = 1e-4
 USD_EXACT_MAX_BYTES = 1 << 30
 """Largest exact set of blend shapes (``12 m n`` bytes) the automatic choice writes; principal components beyond."""
 
-MAX_ERROR_PASS_FLOPS = 2e11
-"""Largest pass (frames x vertices x rig elements) the default computes the exact maximum error with."""
-
 DEFAULT_USD_COMPONENTS = 48
 """Blend shapes of a principal-component USD rig (the size bar at 700k vertices: rig + USD under 1/100 of the frames)."""
 
@@ -78,8 +75,9 @@ def write_usd_blendshapes(
     rate: float,
     head_motion: np.ndarray | None = None,
     tolerance_mm: float = DEFAULT_BLENDSHAPE_TOLERANCE_MM,
-    max_shapes: int | None = None,
-    exact_max_error: bool | None = None,
+    principal_targets: np.ndarray | None = None,
+    principal_weights: np.ndarray | None = None,
+    principal_error: dict[str, Any] | None = None,
     progress: bool = False,
 ) -> dict[str, Any]:
     """Write ``rig`` as UsdSkel blend shapes with their weights animated at ``rate``.
@@ -98,15 +96,18 @@ def write_usd_blendshapes(
         Head motion per frame (translation in the rig's unit) on ``/Head``.
     tolerance_mm : float, default 1e-4
         Bound on what the dropped far-field entries may add up to (see the module docstring); 0 keeps every entry.
-    max_shapes : int, optional
-        Write at most this many shapes: the take's principal components when
-        the exact rig needs more (the error they leave is returned); default
-        None: the exact shapes.
-    exact_max_error : bool, optional
-        With principal components, also compute the largest vertex error over
-        the take (one pass over it, ``T n m`` multiply-adds; the RMS figures
-        are always exact). Default None: where that is at most
-        :data:`MAX_ERROR_PASS_FLOPS` (a few seconds), else ``max_mm`` is None.
+    principal_targets : (m, n, 3) float32 array, mm, optional
+        Shapes to write instead of the rig's exact ones: the take's first
+        principal components (``targets`` of
+        :func:`facecap.deform.principal_targets_from_rig` on ``rig.in_mm()``).
+        Converted to the rig's unit and moved into the weights' [0, 1] range
+        in place (no copy of what can be 0.4 GB); default None: the exact shapes.
+    principal_weights : (T, m) float array, optional
+        Their weights per frame; with ``principal_targets``.
+    principal_error : dict, optional
+        The error they leave, mm (``rms_mm``, ``max_mm`` (None where not
+        computed), ...); with ``principal_targets``. Returned and written into
+        the layer's documentation.
     progress : bool, default False
 
     Returns
@@ -120,7 +121,8 @@ def write_usd_blendshapes(
     Raises
     ------
     InputError
-        If the mesh and the rig disagree, ``head_motion`` is not (T, 4, 4), or the file cannot be written.
+        If the mesh and the rig disagree, ``head_motion`` is not (T, 4, 4), the principal
+        components are incomplete or do not fit the rig, or the file cannot be written.
     """
     from pxr import Gf, Sdf, Usd, UsdGeom, UsdSkel, Vt
 
@@ -137,20 +139,19 @@ def write_usd_blendshapes(
             raise InputError(f"head_motion: expected finite ({rig.n_frames}, 4, 4), got {head_motion.shape}")
     tolerance = float(tolerance_mm) / mm_per_unit(rig.units)
 
-    principal = None
-    if max_shapes is not None and rig.n_shapes > int(max_shapes):
-        from ..deform.principal_targets import principal_targets_from_rig
-
+    principal = principal_targets is not None
+    if principal:
+        if principal_weights is None or principal_error is None:
+            raise InputError("principal_targets: give principal_weights and principal_error with them")
+        shapes = np.asarray(principal_targets, dtype=np.float32)  # the caller's: converted and rescaled in place
+        weights = np.asarray(principal_weights)
+        if (shapes.ndim != 3 or shapes.shape[1:] != (rig.n_vertices, 3)
+                or weights.shape != (rig.n_frames, shapes.shape[0])):
+            raise InputError(f"principal_targets, principal_weights: expected (m, {rig.n_vertices}, 3) and "
+                             f"({rig.n_frames}, m), got {shapes.shape} and {weights.shape}")
         to_mm = np.float32(mm_per_unit(rig.units))
-        if exact_max_error is None:
-            exact_max_error = rig.n_frames * rig.n_vertices * rig.n_shapes <= MAX_ERROR_PASS_FLOPS
-        basis, coefficients = rig.in_mm()
-        principal = principal_targets_from_rig(basis, coefficients, max_targets=int(max_shapes),
-                                               exact_max=exact_max_error, progress=progress)
-        shapes = principal.targets  # made here: converted and rescaled in place, no 0.4 GB copies
         if to_mm != 1:
             shapes /= to_mm
-        weights = principal.weights
         names = [f"pc{j:03d}" for j in range(shapes.shape[0])]
         tolerance = 0.0  # principal shapes are dense: nothing to drop
     else:
@@ -158,7 +159,7 @@ def write_usd_blendshapes(
         weights = rig.shape_weights()
     m, T = shapes.shape[0], rig.n_frames
     # weights in [0, 1]: Blender's USD importer keeps every shape key's range at [0, 1] and clamps
-    unit = to_unit_range(shapes, weights, overwrite_targets=principal is not None)
+    unit = to_unit_range(shapes, weights, overwrite_targets=principal)
     shapes, weights = unit.targets, unit.weights
     share = tolerance / m if tolerance > 0 else 0.0
     tokens = [_token(name, k) for k, name in enumerate(names)]
@@ -230,12 +231,12 @@ def write_usd_blendshapes(
             if transform_path is not None:
                 layer.SetTimeSample(transform_path, float(t), Gf.Matrix4d(head_motion[t].T.tolist()))
     bound = share * m if share > 0 else 0.0
-    error = None if principal is None else {k: (float(v) if isinstance(v, (float, np.floating)) else v)
-                                            for k, v in principal.error.items()}
+    error = None if not principal else {k: (float(v) if isinstance(v, (float, np.floating)) else v)
+                                        for k, v in principal_error.items()}
     layer.documentation = (
         f"facecap rig as UsdSkel blend shapes: {m} shapes, {rig.n_vertices} vertices, {T} frames at {rate:g} Hz, "
         f"unit {rig.units}; "
-        + (f"far-field entries dropped add up to at most {bound * mm_per_unit(rig.units):.3g} mm" if principal is None
+        + (f"far-field entries dropped add up to at most {bound * mm_per_unit(rig.units):.3g} mm" if not principal
            else f"the take's first {m} principal components: error RMS {error['rms_mm']:.3g} mm, "
                 f"max {error['max_mm'] if error['max_mm'] is None else round(error['max_mm'], 4)} mm")
     )
@@ -248,7 +249,7 @@ def write_usd_blendshapes(
         "stored_entries": int(stored),
         "dense_entries": int(m * rig.n_vertices),
         "error_bound_mm": float(bound * mm_per_unit(rig.units)),
-        "principal_components": principal is not None,
+        "principal_components": principal,
         **({"error": error} if error is not None else {}),
         "bytes": path.stat().st_size,
     }

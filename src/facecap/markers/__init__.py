@@ -18,19 +18,23 @@ of the mismatch is an expression the actor holds at rest, by how much of it each
 :func:`prepare_markers` (``prepare_take.py``) makes a take ready for any solver: matched to the map
 (:func:`check_take_against_map`), conditioned, as :class:`PreparedMarkers`; :func:`rest_average` gives the
 warp its rest markers and :func:`head_pose_in_scan` the head motion in the scan's coordinates.
+:func:`check_scan_units` (``check_scan_units.py``) checks a scan's length unit against the markers' size
+(and converts it on request); :func:`check_take_units` (``check_take_units.py``) does so for a scan, a take
+and the map between them.
 """
 
 from __future__ import annotations
 
 from .bilateral_filter import bilateral_filter
-from .choose_temporal_sigma import DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S, TemporalSigmaChoice, choose_temporal_sigma
+from .check_scan_units import check_scan_units
+from .check_take_units import check_take_units
+from .choose_temporal_sigma import DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S, choose_temporal_sigma
 from .condition_take import (
     DEFAULT_HEAD_MOTION_SIGMA_S,
     HEAD_POSE_SOURCES,
     SKIN_HEAD_POSES,
     STABLE_MARKER_MOTION_MM,
     STILL_HEAD_RATIO,
-    ConditionedTake,
     auto_stabilize,
     condition_take,
     moving_stable_markers,
@@ -59,6 +63,8 @@ from .rigid_fit import RigidTransform, rigid_fit
 from .stabilize_head import Stabilization, stabilize_head
 
 __all__ = [
+    "check_scan_units",
+    "check_take_units",
     "prepare_markers",
     "PreparedMarkers",
     "check_take_against_map",
@@ -72,10 +78,8 @@ __all__ = [
     "Stabilization",
     "bilateral_filter",
     "choose_temporal_sigma",
-    "TemporalSigmaChoice",
     "DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S",
     "condition_take",
-    "ConditionedTake",
     "auto_stabilize",
     "consensus_stabilize",
     "estimate_marker_noise",

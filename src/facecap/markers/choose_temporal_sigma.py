@@ -2,35 +2,23 @@
 
 from __future__ import annotations
 
-from typing import NamedTuple, Sequence
+from typing import Sequence
 
 import numpy as np
 
 from ..errors import InputError
+from ..structures import TemporalSigmaChoice
 from ..typing import FloatArray
 from ..validate import as_marker_positions, as_positive
 from .bilateral_filter import _filter_setup, _frame_index, _rest_configuration, _weighted_sums
 
-__all__ = ["choose_temporal_sigma", "TemporalSigmaChoice", "DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S"]
+__all__ = ["choose_temporal_sigma", "DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S"]
 
 DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S = (0.005, 0.01, 0.02, 0.03, 0.045, 0.06, 0.08, 0.1)
 """Temporal sigmas tried (s). At 0.1 s the window reaches 0.25 s either side, a syllable: no further."""
 
 _MAX_SCORED_FRAMES = 600
 _SCORED_BLOCKS = 4
-
-
-class TemporalSigmaChoice(NamedTuple):
-    """The sigma chosen and the cross-validation score of every candidate."""
-
-    sigma_s: float
-    """The candidate with the smallest score, s."""
-    candidates_s: tuple[float, ...]
-    scores_mm2: tuple[float, ...]
-    """Mean squared distance (mm^2) from each scored sample to the filter's prediction of it from the
-    other samples (nearby frames and markers), per candidate."""
-    scored_frames: int
-    """Frames the scores are averaged over (spread over the take; all of it when short)."""
 
 
 def choose_temporal_sigma(

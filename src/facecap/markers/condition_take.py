@@ -4,22 +4,21 @@ from __future__ import annotations
 
 import re
 import warnings
-from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..errors import FacecapWarning, InputError, MarkerError
-from ..structures import MarkerSequence
+from ..structures import ConditionedTake, MarkerSequence
 from .bilateral_filter import bilateral_filter
-from .choose_temporal_sigma import TemporalSigmaChoice, choose_temporal_sigma
+from .choose_temporal_sigma import choose_temporal_sigma
 from .fill_gaps import fill_gaps
 from .rigid_fit import RigidTransform
 from .consensus_stabilize import consensus_stabilize, estimate_marker_noise
 from .stabilize_head import Stabilization, stabilize_head
 
-__all__ = ["ConditionedTake", "condition_take", "moving_stable_markers", "DEFAULT_HEAD_MOTION_SIGMA_S",
+__all__ = ["condition_take", "moving_stable_markers", "DEFAULT_HEAD_MOTION_SIGMA_S",
            "SKIN_HEAD_POSES", "STILL_HEAD_RATIO", "HEAD_POSE_SOURCES", "STABLE_MARKER_MOTION_MM",
            "savitzky_golay"]
 
@@ -48,43 +47,6 @@ stabilisation) moves with the face, not the skull: :func:`moving_stable_markers`
 
 _JAW_OR_LIPS = re.compile(r"chin|jaw|lip|mouth|mth", re.IGNORECASE)
 """Label words of markers on the jaw or the lips, as vendors' face marker sets name them."""
-
-
-@dataclass(frozen=True, eq=False)
-class ConditionedTake:
-    """A take after conditioning, all markers kept in the take's column order.
-
-    Attributes
-    ----------
-    positions : (T, M, 3) float64 array, mm
-        Gap-filled, stabilised (if asked) and filtered positions; NaN only
-        where a marker could not be recovered.
-    filled : (T, M) bool array
-        Samples made up by gap filling.
-    head_rotations, head_translations : (T, 3, 3), (T, 3) float64 arrays or None
-        The stabilising transform of each frame (``x' = R x + t``), if stabilised.
-    stabilization_residual : (T,) float64 array or None, mm
-        RMS misfit of the stable markers after stabilisation.
-    stable_labels : tuple of str
-        Markers the stabilisation used.
-    temporal_sigma_s : float or None
-        The bilateral filter's temporal sigma (s); None where the take was not filtered.
-    temporal_sigma_choice : TemporalSigmaChoice or None
-        How it was chosen, when it was (``temporal_sigma_s='auto'``): every
-        candidate's cross-validation score.
-    head_pose_from : str or None
-        One of :data:`HEAD_POSE_SOURCES`; None where the take was not stabilised.
-    """
-
-    positions: np.ndarray
-    filled: np.ndarray
-    head_rotations: np.ndarray | None
-    head_translations: np.ndarray | None
-    stabilization_residual: np.ndarray | None
-    stable_labels: tuple[str, ...]
-    temporal_sigma_s: float | None = None
-    temporal_sigma_choice: TemporalSigmaChoice | None = None
-    head_pose_from: str | None = None
 
 
 def condition_take(

@@ -15,9 +15,8 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..errors import MarkerError
-from ..io.read_correspondence import Correspondence, match_correspondence
-from ..structures import MarkerSequence, Mesh
-from .choose_temporal_sigma import TemporalSigmaChoice
+from ..io.read_correspondence import match_correspondence
+from ..structures import Correspondence, MarkerSequence, Mesh, TemporalSigmaChoice
 from .condition_take import condition_take
 from .rigid_fit import rigid_fit
 

@@ -200,11 +200,11 @@ def _proper_triangles(V: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def _carry_face_varying_uvs(mesh: Mesh, kept_faces: np.ndarray, new_faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """UVs and per-corner UV indices for the kept triangles (see the Notes of :func:`review_mesh`)."""
-    from ..io.write_gltf import _triangle_corners  # the one home of polygon corner -> triangle corner
+    from ..io.write_gltf import triangle_corners  # the one home of polygon corner -> triangle corner
 
     uvs = np.asarray(mesh.uvs, dtype=np.float64)
     n_uv = uvs.shape[0]
-    corner_uv = np.asarray(mesh.uv_indices, dtype=np.int64)[_triangle_corners(mesh)]  # (m, 3)
+    corner_uv = np.asarray(mesh.uv_indices, dtype=np.int64)[triangle_corners(mesh)]  # (m, 3)
     m = corner_uv.shape[0]
     # charts: connected components of the triangle -- UV index graph
     graph = coo_matrix((np.ones(3 * m), (np.repeat(np.arange(m), 3), m + corner_uv.ravel())), shape=(m + n_uv,) * 2)

@@ -30,8 +30,16 @@ calls the solver packages (arrays in, arrays out), and writes the result through
 - :func:`write_muscle_result` (``write_muscle_result.py``): the result folder of both muscle jobs,
   ``animate``'s plus :data:`ACTIVATIONS_FILE`, :data:`BONE_TRANSFORMS_FILE` and the activation
   picture (:func:`plot_muscle_activations`).
+- :func:`finish_result` (``finish_result.py``): the end every job's result folder shares: the
+  exports made from the finished frames, ``review.html`` and ``report.html``, then the writer's
+  rename; :func:`import_writers` imports what they need ahead of time.
+- :func:`export_result` (``export_result.py``): ``facecap export`` (and ``--export``), a finished
+  result written to artists' formats; its glTF review file is :func:`write_gltf_review`
+  (``write_gltf_review.py``: a decimated review mesh and the take's principal morph targets).
+- :func:`view_result` (``view_result.py``): ``facecap view``, the review page of a result (its
+  glTF made if missing, the error heat map against a truth) and its report.
 
-Not here yet (issue 29): ``export`` and ``view`` (in :mod:`facecap.io` and :mod:`facecap.report`) and the demo.
+Not here yet (issue 29): the demo's job (``facecap/demo.py``).
 
 The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
 function; reach a module itself with ``importlib.import_module``.
@@ -63,6 +71,10 @@ _PUBLIC = {
     "solve_muscle_take": ("solve_muscle_take", "MuscleTakeResult", "RIGID_FIT_LIMIT_MM"),
     "write_muscle_result": ("write_muscle_result", "plot_muscle_activations", "ACTIVATIONS_FILE",
                             "BONE_TRANSFORMS_FILE"),
+    "finish_result": ("finish_result", "import_writers"),
+    "export_result": ("export_result", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES", "MAX_ERROR_PASS_FLOPS"),
+    "write_gltf_review": ("write_gltf_review",),
+    "view_result": ("view_result", "ERROR_ROWS"),
 }
 """Each job module's public names, by module."""
 

@@ -25,19 +25,20 @@ from ..deform.rest_pose import RestPose, choose_rest_pose, neutral_from_frames, 
 from ..deform.thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces
 from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
 from ..errors import FacecapWarning, MarkerError
-from ..io.export_result import parse_export_formats
-from ..io.read_correspondence import Correspondence
+from ..io.result_layout import parse_export_formats
 from ..io.result_rig import ResultRig
-from ..io.write_performance import PerformanceWriter, import_writers
+from ..io.write_performance import PerformanceWriter
 from ..markers.condition_take import moving_stable_markers
 from ..markers.consensus_stabilize import estimate_marker_noise
 from ..markers.prepare_take import (DEFAULT_REST_AVERAGE_S, MIN_DRIVING_MARKERS, PreparedMarkers,
                                     check_take_against_map, head_pose_in_scan, prepare_markers, rest_average)
 from ..mesh.check_mesh import check_mesh
 from ..mesh.factor_spd import Backend, load_backend
-from ..structures import MarkerSequence, Mesh
-from ..units import check_take_units, mm_per_unit
+from ..structures import Correspondence, MarkerSequence, Mesh
+from ..markers.check_take_units import check_take_units
+from ..units import mm_per_unit
 from ..validate import as_positive
+from .finish_result import finish_result, import_writers
 
 __all__ = ["animate_scan", "AnimationResult", "OFFSET_WARNING_MM"]
 
@@ -162,7 +163,7 @@ def animate_scan(
     rig_precision : {'float32', 'int16'}, default 'float32'
         Storage of the rig's basis (int16: half the size, bound in ``rig/rig.json``).
     export_options : dict, optional
-        Passed to :func:`facecap.io.export_result` (glTF targets, review mesh size).
+        Passed to :func:`facecap.pipelines.export_result` (glTF targets, review mesh size).
     unmarked_pieces : {'carry', 'rigid'}, default 'carry'
         What pieces of the scan without markers do.
     batch_frames : int, default 32
@@ -189,7 +190,7 @@ def animate_scan(
     MeshError
         If the scan's size disagrees with the markers' by a length unit (a
         scan in metres read as mm), naming the likely unit; see
-        :func:`facecap.units.check_take_units`, which can also convert.
+        :func:`facecap.markers.check_take_units`, which can also convert.
     """
     check_take_units(scan, markers, correspondence, rest_frame=rest_frame)
     exports = parse_export_formats(exports)  # names and optional packages, before the set-up
@@ -356,7 +357,7 @@ def animate_scan(
         }
         writer.path("report.json").write_text(json.dumps(report, indent=1))
         metadata["timings"] = timings
-        final = writer.finish(metadata)
+        final = finish_result(writer, metadata)
     return AnimationResult(out_dir=final, report=report)
 
 

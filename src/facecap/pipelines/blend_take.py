@@ -22,7 +22,7 @@ from ..errors import FacecapWarning, InputError
 from ..io.read_markers import read_markers
 from ..io.registered_scans import CONDITIONED_TAKE_FILE, read_registered_scans
 from ..io.write_performance import check_result_destination
-from ..markers.condition_take import ConditionedTake
+from ..structures import ConditionedTake
 from .replay_conditioning import replay_conditioning
 from .write_blended_performance import write_blended_performance
 

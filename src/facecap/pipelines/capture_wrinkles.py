@@ -97,7 +97,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     options : mapping, optional
         More options of :func:`~facecap.wrinkles.synthesize_wrinkles`.
     export_options : mapping, optional
-        Passed to :func:`facecap.io.export_result` (e.g. ``export_frame``).
+        Passed to :func:`facecap.pipelines.export_result` (e.g. ``export_frame``).
     overwrite : bool, default False
         Replace an earlier result in ``out_dir``; without it one is refused before any work and
         again at the end (:class:`~facecap.io.PerformanceWriter`).
@@ -117,6 +117,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
     from ..cameras import open_footage, read_image, synchronize
     from ..io.read_result import read_result
     from ..io.write_performance import PerformanceWriter, check_result_destination
+    from .finish_result import finish_result
     from ..runner import run_frames
     from ..wrinkles.track_wrinkles import track_wrinkles
 
@@ -222,7 +223,7 @@ def capture_wrinkles(result_dir: str | os.PathLike[str], cameras: Sequence[Any],
                 _wrinkles_document(run, stage, sync), indent=1))
             timings["write_s"] = time.perf_counter() - t
             timings["total_s"] = time.perf_counter() - start_all
-            final = writer.finish({"method": "bickel2007-medium-scale", "large_scale": writer.record_path(result_dir),
+            final = finish_result(writer, {"method": "bickel2007-medium-scale", "large_scale": writer.record_path(result_dir),
                                    "footage": [writer.record_path(f) for f in footage],
                                    "cameras": [c.name for c in cameras],
                                    "video_rate_hz": float(video_rate_hz), "first_mocap_frame": float(first_mocap_frame),

@@ -23,15 +23,16 @@ import numpy as np
 from ..anatomy.face_anatomy import load_anatomy
 from ..errors import FileFormatError, InputError
 from ..io.atomic_write import resolve_recorded_path
-from ..io.export_result import parse_export_formats
 from ..io.read_result import read_result
-from ..io.write_performance import check_result_destination, import_writers, read_performance_info
+from ..io.result_layout import parse_export_formats, read_performance_info
+from ..io.write_performance import check_result_destination
 from ..muscles.jaw_constraints import JawConstraints
 from ..muscles.muscle_controls import MuscleControls
 from ..muscles.muscle_editor import (DEFAULT_INTERPOLATION_FRAMES, DEFAULT_PENETRATION_TOLERANCE_MM, EditedFrame,
                                      MuscleEditor, interpolate_controls, interpolate_rigid_motions)
 from ..muscles.muscle_frame_stage import model_folder_sha256
 from ..typing import FloatArray, IntArray
+from .finish_result import import_writers
 from .write_muscle_result import ACTIVATIONS_FILE, BONE_TRANSFORMS_FILE, write_muscle_result
 
 __all__ = ["edit_muscles", "MuscleEditResult", "EDIT_METHOD"]

@@ -31,15 +31,15 @@ import numpy as np
 
 from ..errors import CorrespondenceError, MarkerError
 from ..io.atomic_write import atomic_write_text, check_file_destination, recorded_path
-from ..io.read_correspondence import Correspondence
+from ..markers.check_scan_units import check_scan_units
 from ..markers.prepare_take import DEFAULT_REST_AVERAGE_S
 from ..markers.rigid_fit import rigid_fit
 from ..registration.find_marker_map import (DEFAULT_OFF_SKIN_MM, MIN_MAP_MARKERS, MarkerMap, find_marker_map,
                                             marker_status)
 from ..registration.rest_markers_of import rest_markers_of
-from ..structures import MarkerSequence, Mesh
+from ..structures import Correspondence, MarkerSequence, Mesh
 from ..typing import FloatArray
-from ..units import check_scan_units, mm_per_unit
+from ..units import mm_per_unit
 from ..validate import as_positive
 
 __all__ = ["map_markers", "map_side_files"]

@@ -18,8 +18,8 @@ from ..io.read_markers import read_markers
 from ..io.read_mesh import read_mesh
 from ..io.registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, write_registered_scans
 from ..io.scan_plan import read_scan_plan
+from ..markers.check_scan_units import check_scan_units
 from ..structures import Mesh
-from ..units import check_scan_units
 from .plan_scans import conditioned_take_path
 from .replay_conditioning import replay_conditioning
 
@@ -53,7 +53,7 @@ def register_planned_scans(
 
     ``scan_unit`` and ``template_unit`` are length units, or ``'auto'``: each
     file's size is compared with its frame's markers
-    (:func:`facecap.units.check_scan_units`); a given unit they contradict
+    (:func:`facecap.markers.check_scan_units`); a given unit they contradict
     stops with an error naming the likely one, ``'auto'`` converts to it.
 
     An earlier bases folder in ``out_dir`` is replaced only with

@@ -13,8 +13,8 @@ from typing import Any
 
 from ..errors import InputError
 from ..io.conditioned_take import file_sha256, read_conditioned_take
-from ..markers.condition_take import DEFAULT_HEAD_MOTION_SIGMA_S, ConditionedTake, condition_take
-from ..structures import MarkerSequence
+from ..markers.condition_take import DEFAULT_HEAD_MOTION_SIGMA_S, condition_take
+from ..structures import ConditionedTake, MarkerSequence
 
 __all__ = ["replay_conditioning"]
 

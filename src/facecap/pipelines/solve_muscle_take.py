@@ -32,10 +32,10 @@ from ..deform.marker_offsets import marker_ring
 from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
 from ..errors import CorrespondenceError, FacecapWarning, InputError
 from ..io.atomic_write import final_path
-from ..io.export_result import parse_export_formats
-from ..io.read_correspondence import Correspondence, read_correspondence
+from ..io.read_correspondence import read_correspondence
 from ..io.read_markers import read_markers
-from ..io.write_performance import check_result_destination, import_writers
+from ..io.result_layout import parse_export_formats
+from ..io.write_performance import check_result_destination
 from ..markers.consensus_stabilize import estimate_marker_noise
 from ..markers.prepare_take import (DEFAULT_REST_AVERAGE_S, PreparedMarkers, head_pose_in_scan, prepare_markers,
                                     rest_average)
@@ -43,8 +43,9 @@ from ..markers.rigid_fit import rigid_fit
 from ..muscles.marker_embedding import marker_embedding
 from ..muscles.muscle_frame_stage import MuscleFrameStage, flag_names, model_folder_sha256
 from ..runner.run_frames import FrameRun, run_frames
-from ..structures import MarkerSequence
+from ..structures import Correspondence, MarkerSequence
 from ..validate import as_positive
+from .finish_result import import_writers
 from .write_muscle_result import write_muscle_result
 
 __all__ = ["solve_muscle_take", "MuscleTakeResult", "RIGID_FIT_LIMIT_MM"]
@@ -179,7 +180,7 @@ def solve_muscle_take(
     extra_metadata : mapping, optional
         Added to ``performance.json``.
     export_options : mapping, optional
-        Passed to :func:`facecap.io.export_result` (e.g. ``export_frame``).
+        Passed to :func:`facecap.pipelines.export_result` (e.g. ``export_frame``).
     overwrite : bool, default False
         Replace an earlier result in ``out_dir``; without it one is refused before any work
         (:func:`facecap.io.write_performance.check_result_destination`) and again at the end.

@@ -20,6 +20,7 @@ from ..io.result_rig import ResultRig
 from ..io.write_performance import PerformanceWriter
 from ..structures import Mesh
 from ..units import mm_per_unit
+from .finish_result import finish_result
 
 __all__ = ["write_blended_performance"]
 
@@ -91,7 +92,7 @@ def write_blended_performance(
     rig_precision : {'float32', 'int16'}, default 'float32'
         Storage of the rig's shapes.
     export_options : dict, optional
-        Passed to :func:`facecap.io.export_result`.
+        Passed to :func:`facecap.pipelines.export_result`.
     progress : bool, default True
     overwrite : bool, default False
         Replace an earlier result in ``out_dir`` (:class:`~facecap.io.PerformanceWriter`).
@@ -132,4 +133,4 @@ def write_blended_performance(
                 np.save(writer.path(name), content)
             else:
                 writer.path(name).write_text(str(content))
-        return writer.finish({"method": "huang2011-blendshapes", "stabilized": pose is not None, **(metadata or {})})
+        return finish_result(writer, {"method": "huang2011-blendshapes", "stabilized": pose is not None, **(metadata or {})})

@@ -20,6 +20,7 @@ from ..io.write_performance import PerformanceWriter
 from ..muscles.muscle_solver import FLAG_RESIDUAL_MM
 from ..report.plot_activations import plot_activations
 from ..structures import Mesh
+from .finish_result import finish_result
 
 __all__ = ["write_muscle_result", "plot_muscle_activations", "ACTIVATIONS_FILE", "BONE_TRANSFORMS_FILE"]
 
@@ -118,7 +119,7 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Mesh, rate: float
     desc : str
         The progress bar's label.
     export_options : mapping, optional
-        Passed to :func:`facecap.io.export_result`.
+        Passed to :func:`facecap.pipelines.export_result`.
     overwrite : bool, default False
         Replace an earlier result in ``out_dir`` (:class:`~facecap.io.PerformanceWriter`).
 
@@ -152,4 +153,4 @@ def write_muscle_result(out_dir: str | os.PathLike[str], scan: Mesh, rate: float
         report["timings"] = timings
         writer.path("report.json").write_text(json.dumps(report, indent=1))
         metadata["timings"] = timings
-        return writer.finish(metadata)
+        return finish_result(writer, metadata)

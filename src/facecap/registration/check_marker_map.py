@@ -18,10 +18,10 @@ import igl
 import numpy as np
 
 from ..errors import CorrespondenceError, FacecapWarning
-from ..io.read_correspondence import Correspondence, match_correspondence
+from ..io.read_correspondence import match_correspondence
 from ..markers.resting_expression import robust_rigid_fit
-from ..structures import MarkerSequence, Mesh
-from ..units import check_take_units
+from ..structures import Correspondence, MarkerSequence, Mesh
+from ..markers.check_take_units import check_take_units
 from ..validate import as_positive
 from .find_marker_map import MIN_MAP_MARKERS, find_marker_map, marker_status
 from .register_markers_to_scan import scan_winding

@@ -25,8 +25,8 @@ In the order a user meets them:
 - :func:`write_html_report` (``html_report.py``): one self-contained HTML report per run
   (summary, quality figures explained, warnings explained, details); :func:`explain_warning`
   (``explain_warning.py``) says what each warning means and what to do.
-- :func:`view_result`, :func:`write_run_report` (``view_result.py``): what ``facecap view``
-  writes into a result folder (the GLB if missing, ``review.html``, ``report.html``).
+- :func:`write_run_report` (``write_run_report.py``): a result folder's ``report.html``, which
+  every job writes at its end and ``facecap view`` (:func:`facecap.pipelines.view_result`) rewrites.
 
 Imported eagerly (matplotlib is a main dependency): a lazy ``__getattr__`` would
 hand out the *module* ``render_mesh`` instead of the function of the same name
@@ -46,7 +46,7 @@ from .plot_series import plot_series
 from .plot_marker_map import MARKER_MAP_COLORS, plot_marker_map
 from .render_mesh import MeshPanel, draw_mesh, render_mesh, render_side_by_side
 from .review_page import EMBED_LIMIT_BYTES, ReviewServer, serve, write_review_page
-from .view_result import ERROR_ROWS, view_result, write_run_report
+from .write_run_report import write_run_report
 
 __all__ = [
     "describe_file",
@@ -73,7 +73,5 @@ __all__ = [
     "explain_warning",
     "WarningAdvice",
     "result_and_truth_mm",
-    "view_result",
     "write_run_report",
-    "ERROR_ROWS",
 ]

@@ -23,7 +23,7 @@ from ..errors import FileFormatError
 from ..io.read_markers import MARKER_FORMATS, MARKER_SUFFIXES
 from ..io.read_mesh import MESH_FORMATS, MESH_SUFFIXES
 from ..units import FACE_MARKERS_SIZE_MM, FACE_SIZE_MM, FaceSize, check_face_size
-from ..units import _figure as _length  # three significant figures, as the size warnings write lengths
+from ..units import three_figures as _length  # as the size warnings write lengths
 
 __all__ = ["describe_file", "format_description"]
 

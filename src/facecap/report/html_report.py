@@ -44,7 +44,7 @@ import numpy as np
 from .. import __version__
 from ..errors import InputError
 from ..io.atomic_write import atomic_path, final_path
-from ..io.write_performance import file_sizes
+from ..io.result_layout import file_sizes
 from .explain_warning import explain_warning
 from .plot_series import plot_series
 

@@ -4,7 +4,7 @@
 written atomically: ``performance.glb`` when the result has none yet (the
 glTF review export), ``review.html`` (:func:`facecap.report.write_review_page`;
 with ``truth``, the error heat map at sampled frames) and ``report.html``
-(:func:`facecap.report.write_html_report`, linking the page). The command
+(:func:`facecap.report.write_run_report`, linking the page). The command
 then serves the folder on localhost (:func:`facecap.report.serve`).
 """
 
@@ -15,10 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.export_result import export_result
 from ..io.read_result import Result, read_result
+from .export_result import export_result
 
-__all__ = ["view_result", "write_run_report", "ERROR_ROWS"]
+__all__ = ["view_result", "ERROR_ROWS"]
 
 ERROR_ROWS = 120
 """Frames sampled for the review page's error heat map (each row is one byte per vertex in the page)."""
@@ -57,7 +57,8 @@ def view_result(
     InputError
         If the folder is not a finished result, or the truth does not match it.
     """
-    from .review_page import write_review_page
+    from ..report.review_page import write_review_page
+    from ..report.write_run_report import write_run_report
 
     result = read_result(result_dir)
     glb = result.path / "performance.glb"
@@ -74,23 +75,12 @@ def view_result(
     return page
 
 
-def write_run_report(result: Result | str | os.PathLike[str]) -> Path:
-    """``report.html`` of a result folder: its figures, plots and pictures, linking ``review.html`` if present."""
-    from .html_report import write_html_report
-
-    result = result if isinstance(result, Result) else read_result(result)
-    pictures = sorted(result.path.glob("*.png")) + sorted(result.path.glob("pictures/*.png"))
-    review = result.path / "review.html"
-    return write_html_report(result.path / "report.html", result.path, pictures=pictures,
-                             review_page=review if review.is_file() else None)
-
-
 def _error_rows(result: Result, truth: str | os.PathLike[str], frame: str, glb: Path,
                 rows: int) -> tuple[np.ndarray, np.ndarray]:
     """Per-vertex error (mm) on the GLB's vertices at ``rows`` frames spread over the take."""
     from scipy.spatial import cKDTree
 
-    from .evaluate_result import result_and_truth_mm
+    from ..report.evaluate_result import result_and_truth_mm
 
     result_mm, truth_mm, _ = result_and_truth_mm(truth, result.path, frame=frame)
     frames = np.unique(np.round(np.linspace(0, result.n_frames - 1, min(rows, result.n_frames))).astype(np.int64))

@@ -9,7 +9,7 @@ import pytest
 
 from facecap.cli import main
 from facecap.io import read_result
-from test_write_gltf import assert_valid, load, read_accessor
+from gltf_validator import assert_valid, load, read_accessor
 
 
 def _animate(case, out, *extra: str) -> None:
@@ -141,7 +141,7 @@ def test_view_writes_the_pages_with_the_true_error(capture_case, tmp_path, capsy
     assert "review.html" in capsys.readouterr().out
     assert (out / "performance.glb").is_file() and (out / "review.html").is_file()
     assert 'href="review.html"' in (out / "report.html").read_text()
-    from facecap.report.view_result import _error_rows
+    from facecap.pipelines.view_result import _error_rows
 
     rows, frames = _error_rows(read_result(out), capture_case.truth_path, "auto", out / "performance.glb", 7)
     truth = evaluate_result(capture_case.truth_path, out)

@@ -27,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from .read_result import Result
-from .weight_ranges import to_unit_range
+from ..io.read_result import Result
+from ..io.weight_ranges import to_unit_range
 
 __all__ = ["write_gltf_review"]
 
@@ -68,7 +68,7 @@ def write_gltf_review(
     """
     from ..deform.principal_targets import principal_targets, principal_targets_from_rig
     from ..mesh.review_mesh import review_mesh
-    from .write_gltf import write_gltf
+    from ..io.write_gltf import write_gltf
 
     review = review_mesh(result.mesh, max_vertices=max_vertices)
     subset = review.vertex_subset

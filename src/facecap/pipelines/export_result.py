@@ -46,12 +46,12 @@ from typing import Any, Iterable
 import numpy as np
 
 from ..errors import FacecapWarning, InputError
-from .atomic_write import ensure_folder
-from .read_result import Result, read_result
-from .write_performance import EXPORT_FORMATS, STREAMED_FORMATS, file_sizes
+from ..io.atomic_write import atomic_folder, atomic_write_text, ensure_folder
+from ..io.read_result import Result, read_result
+from ..io.result_layout import (EXPORT_FRAMES, PERFORMANCE_FILE, REST_OBJ_FILE, WORLD_FRAME_FORMATS, export_files,
+                                file_sizes, parse_export_formats)
 
-__all__ = ["export_result", "parse_export_formats", "export_files", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES",
-           "EXPORT_FRAMES", "WORLD_FRAME_FORMATS"]
+__all__ = ["export_result", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES", "MAX_ERROR_PASS_FLOPS"]
 
 DEFAULT_GLTF_TARGETS = 64
 """Morph targets of a glTF review file at most (principal components beyond an exact small rig)."""
@@ -59,35 +59,9 @@ DEFAULT_GLTF_TARGETS = 64
 DEFAULT_REVIEW_VERTICES = 100_000
 """Vertices of the glTF review mesh at most (decimated by vertex subset beyond)."""
 
-EXPORT_FRAMES = ("stabilized", "world")
-"""Frames the point caches and Alembic can hold: the stabilised face, or the face moved by ``head_motion.npy``."""
-
-WORLD_FRAME_FORMATS = ("mdd", "pc2", "abc")
-"""Exports ``export_frame='world'`` changes (USD and glTF always carry the head motion as the root's transform)."""
-
-_REST_OBJ = "performance_rest.obj"
-
-
-def parse_export_formats(text: str | Iterable[str]) -> list[str]:
-    """``'usd,gltf'`` (or a list) to a checked, de-duplicated list of formats.
-
-    Raises
-    ------
-    InputError
-        Naming the unknown formats and the known ones, or the package an
-        optional format needs (Alembic: ``facecap[alembic]``).
-    """
-    items = [s.strip().lower() for s in (text.split(",") if isinstance(text, str) else text)]
-    formats = list(dict.fromkeys(s for s in items if s))
-    unknown = [f for f in formats if f not in EXPORT_FORMATS]
-    if unknown:
-        raise InputError(f"--export: unknown format(s) {unknown}; choose from {', '.join(EXPORT_FORMATS)}")
-    if "abc" in formats:  # the optional writer's package, checked before any long work
-        from .write_alembic import _import_alembic
-
-        _import_alembic()
-    return formats
-
+MAX_ERROR_PASS_FLOPS = 2e11
+"""Largest pass (frames x vertices x rig elements) a principal-component USD rig's exact maximum error is computed
+with (one pass over the take, ``T n m`` multiply-adds, a few seconds; beyond, ``max_mm`` is None)."""
 
 def export_result(
     result_dir: str | os.PathLike[str] | Result,
@@ -171,9 +145,9 @@ def export_result(
     planned = {fmt: names for fmt, names in planned.items() if names}
     existing = [name for name in dict.fromkeys(n for names in planned.values() for n in names)
                 if os.path.lexists(target / name.rstrip("/"))]
-    rest_kept = _REST_OBJ in existing and _same_rest_obj(result, target / _REST_OBJ)
+    rest_kept = REST_OBJ_FILE in existing and _same_rest_obj(result, target / REST_OBJ_FILE)
     if rest_kept:
-        existing.remove(_REST_OBJ)
+        existing.remove(REST_OBJ_FILE)
     if existing and not overwrite:
         raise InputError(f"{', '.join(existing)} {'exists' if len(existing) == 1 else 'exist'} already; pass "
                          "--overwrite to replace (an export never removes what is there)", path=str(target))
@@ -181,7 +155,7 @@ def export_result(
     report: dict[str, Any] = {}
     rest_obj = None
     if {"mdd", "pc2"} & set(planned):  # one rest mesh for both caches
-        rest_obj = target / _REST_OBJ if rest_kept else _rest_obj(result, target)
+        rest_obj = target / REST_OBJ_FILE if rest_kept else _rest_obj(result, target)
     for fmt in planned:
         world = export_frame == "world" and fmt in WORLD_FRAME_FORMATS
         entry = _WRITERS[fmt](result, target, batch_frames=batch_frames, progress=progress,
@@ -198,36 +172,6 @@ def export_result(
     return report
 
 
-def export_files(result: Result, fmt: str, *, export_frame: str = "stabilized", skip_streamed: bool = False) -> list[str]:
-    """The files (``'obj/'`` for a folder) that exporting ``fmt`` of ``result`` writes, relative to the destination.
-
-    Parameters
-    ----------
-    result : Result
-    fmt : str
-        One of :data:`~facecap.io.EXPORT_FORMATS`.
-    export_frame : {'stabilized', 'world'}, default 'stabilized'
-    skip_streamed : bool, default False
-        As for :func:`export_result`.
-
-    Returns
-    -------
-    list of str
-        Empty when nothing is written (a streamed format with ``skip_streamed``).
-    """
-    world = "_world" if export_frame == "world" and fmt in WORLD_FRAME_FORMATS else ""
-    if fmt == "usd":
-        names = ["performance_rig.usdc"] if result.rig is not None else []
-        if not skip_streamed and (result.rig is None or result.has_vertices):  # as a run streams it
-            names.append("performance.usdc")
-        return names
-    if fmt in ("obj", "ply"):
-        return [] if skip_streamed else [f"{fmt}/"]
-    if fmt in ("mdd", "pc2"):
-        return [f"performance{world}.{fmt}", _REST_OBJ]
-    return [{"gltf": "performance.glb", "abc": f"performance{world}.abc"}[fmt]]
-
-
 def _same_rest_obj(result: Result, path: Path) -> bool:
     """Whether ``path`` is byte for byte the rest mesh this result's point caches write (then it is kept)."""
     if not path.is_file():
@@ -238,9 +182,7 @@ def _same_rest_obj(result: Result, path: Path) -> bool:
 
 def _record(folder: Path, report: dict[str, Any]) -> None:
     """Add the export reports and file sizes to ``performance.json`` (rewritten atomically)."""
-    from .atomic_write import atomic_write_text
-
-    path = folder / "performance.json"
+    path = folder / PERFORMANCE_FILE
     info = json.loads(path.read_text())
     info.setdefault("exports_report", {}).update(report)
     info["exports"] = list(dict.fromkeys(list(info.get("exports", [])) + list(report)))
@@ -261,7 +203,7 @@ def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bo
         stats = _export_usd_rig(result, target / "performance_rig.usdc", progress=progress, usd_shapes=usd_shapes)
         files.update(_sizes(target / "performance_rig.usdc"))
     if not skip_streamed and (result.rig is None or result.has_vertices):
-        from .write_usd import UsdPerformanceWriter
+        from ..io.write_usd import UsdPerformanceWriter
 
         path = target / "performance.usdc"
         to_mm = np.float32(result.mm_per_unit)
@@ -277,7 +219,7 @@ def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bo
 
 
 def _export_usd_rig(result: Result, path: Path, *, progress: bool, usd_shapes: str | int) -> dict[str, Any]:
-    from .write_usd_blendshapes import DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES, write_usd_blendshapes
+    from ..io.write_usd_blendshapes import DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES, write_usd_blendshapes
 
     rig = result.rig
     if usd_shapes == "exact":
@@ -295,15 +237,24 @@ def _export_usd_rig(result: Result, path: Path, *, progress: bool, usd_shapes: s
         max_shapes = int(usd_shapes)
         if max_shapes < 1:
             raise InputError(f"--usd-shapes: expected 'auto', 'exact' or a positive count, got {usd_shapes!r}")
+    principal: dict[str, Any] = {}
+    if max_shapes is not None and rig.n_shapes > max_shapes:  # the take's first principal components
+        from ..deform.principal_targets import principal_targets_from_rig
+
+        basis, coefficients = rig.in_mm()
+        found = principal_targets_from_rig(
+            basis, coefficients, max_targets=max_shapes, progress=progress,
+            exact_max=rig.n_frames * rig.n_vertices * rig.n_shapes <= MAX_ERROR_PASS_FLOPS)
+        principal = {"principal_targets": found.targets, "principal_weights": found.weights,
+                     "principal_error": found.error}
     return write_usd_blendshapes(path, result.mesh, rig, rate=result.rate, head_motion=result.head_motion,
-                                 max_shapes=max_shapes, progress=progress)
+                                 progress=progress, **principal)
 
 
 def _export_frames(fmt: str):
     def export(result: Result, target: Path, *, batch_frames: int, progress: bool, overwrite: bool,
                **_: Any) -> dict[str, Any]:
-        from .atomic_write import atomic_folder
-        from .write_mesh import write_mesh
+        from ..io.write_mesh import write_mesh
 
         to_mm = result.mm_per_unit
         with atomic_folder(target / fmt, marker_file=f"frame_000000.{fmt}", overwrite=overwrite) as staging:
@@ -316,16 +267,16 @@ def _export_frames(fmt: str):
 
 def _rest_obj(result: Result, target: Path) -> Path:
     """The rest mesh a point cache is applied to, in the result's unit, vertex order kept."""
-    from .write_mesh import write_mesh
+    from ..io.write_mesh import write_mesh
 
-    path = target / _REST_OBJ
+    path = target / REST_OBJ_FILE
     write_mesh(result.mesh, path)
     return path
 
 
 def _export_mdd(result: Result, target: Path, *, batch_frames: int, progress: bool, rest_obj: Path, world: bool,
                 **_: Any) -> dict[str, Any]:
-    from .write_point_cache import write_mdd
+    from ..io.write_point_cache import write_mdd
 
     path = write_mdd(target / f"performance{'_world' if world else ''}.mdd",
                      _progress(result, batch_frames, progress, "MDD", world=world),
@@ -335,7 +286,7 @@ def _export_mdd(result: Result, target: Path, *, batch_frames: int, progress: bo
 
 def _export_pc2(result: Result, target: Path, *, batch_frames: int, progress: bool, rest_obj: Path, world: bool,
                 **_: Any) -> dict[str, Any]:
-    from .write_point_cache import write_pc2
+    from ..io.write_point_cache import write_pc2
 
     path = write_pc2(target / f"performance{'_world' if world else ''}.pc2",
                      _progress(result, batch_frames, progress, "PC2", world=world),
@@ -345,7 +296,7 @@ def _export_pc2(result: Result, target: Path, *, batch_frames: int, progress: bo
 
 def _export_abc(result: Result, target: Path, *, batch_frames: int, progress: bool, world: bool,
                 **_: Any) -> dict[str, Any]:
-    from .write_alembic import write_alembic
+    from ..io.write_alembic import write_alembic
 
     path = write_alembic(target / f"performance{'_world' if world else ''}.abc", result.mesh,
                          _progress(result, batch_frames, progress, "Alembic", world=world),
@@ -355,7 +306,7 @@ def _export_abc(result: Result, target: Path, *, batch_frames: int, progress: bo
 
 def _export_gltf(result: Result, target: Path, *, batch_frames: int, progress: bool, gltf_targets: int,
                  review_vertices: int, gltf_compress: bool, **_: Any) -> dict[str, Any]:
-    from .gltf_review import write_gltf_review
+    from .write_gltf_review import write_gltf_review
 
     path = target / "performance.glb"
     stats = write_gltf_review(path, result, max_targets=gltf_targets, max_vertices=review_vertices,
