@@ -46,6 +46,19 @@ def test_small_rig_is_rebuilt_exactly(rig) -> None:
     np.testing.assert_allclose(np.abs(weights).max(axis=0), 1.0, rtol=1e-6)  # slider range
 
 
+
+def test_a_basis_stored_vertex_by_vertex_gives_the_same_figures() -> None:
+    # the thin shell's basis is Fortran-ordered (one vertex's K weights together); the per-vertex error
+    # takes its own path through such blocks
+    basis, coefficients, offsets = scalar_rig()
+    by_vertex = np.asfortranarray(basis)
+    targets, weights, error = principal_targets_from_rig(by_vertex, coefficients, max_targets=7)
+    truth = brute_force(targets, weights, offsets)
+    for key, value in truth.items():
+        assert error[key] == pytest.approx(value, rel=1e-5), key
+    _, _, error_c = principal_targets_from_rig(np.ascontiguousarray(basis), coefficients, max_targets=7)
+    assert error["worst_vertex_rms_mm"] == pytest.approx(error_c["worst_vertex_rms_mm"], rel=1e-12)
+
 @pytest.mark.parametrize("rig", [scalar_rig, vector_rig])
 def test_error_figures_equal_brute_force(rig) -> None:
     basis, coefficients, offsets = rig()

