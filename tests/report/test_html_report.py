@@ -302,6 +302,22 @@ def test_the_summary_states_the_run_in_units(tmp_path: Path, fast_plots: list[st
     assert order == sorted(order)
 
 
+
+def test_a_page_written_again_from_the_same_figures_draws_no_plot_twice(tmp_path: Path, fast_plots: list[str]) -> None:
+    folder = _folder(tmp_path)
+    drawn: dict[bytes, bytes] = {}
+    first = write_html_report(tmp_path / "a.html", folder, report=REPORT, drawn_plots=drawn).read_text()
+    n = len(fast_plots)
+    assert n >= 2 and len(drawn) == n
+    second = write_html_report(tmp_path / "b.html", folder, report=REPORT, drawn_plots=drawn).read_text()
+    assert len(fast_plots) == n  # nothing drawn again
+    strip = lambda page: re.sub(r"written \S+ \S+ UTC", "", page)  # noqa: E731
+    assert strip(first) == strip(second)
+    changed = json.loads(json.dumps(REPORT))
+    changed["marker_residual_mm"]["per_frame_max"][0] += 1.0  # one figure changed: that plot alone is drawn
+    write_html_report(tmp_path / "c.html", folder, report=changed, drawn_plots=drawn)
+    assert len(fast_plots) == n + 1
+
 def test_quality_figures_and_warnings_are_explained(tmp_path: Path, fast_plots: list[str]) -> None:
     text = _text(write_html_report(tmp_path / "r.html", _folder(tmp_path), report=REPORT))
     quality = text[text.index("\nQuality\n"):text.index("\nWarnings\n")]

@@ -18,6 +18,7 @@ A job streams its frames (or its rig) through a :class:`facecap.io.PerformanceWr
 from __future__ import annotations
 
 import importlib
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -59,16 +60,22 @@ def finish_result(writer: PerformanceWriter, metadata: dict[str, Any]) -> Path:
 
     staging = writer.write_metadata(metadata)
     later = writer.later_exports
+    plots: dict[bytes, bytes] = {}
     if later:
         from .export_result import export_result
 
         options = dict(writer.export_options)
-        export_result(staging, later, progress=options.pop("progress", False), skip_streamed=True, **options)
+        # The page's plots show the run's own figures, not the exports': drawn beside the exports (numpy and
+        # the disk while matplotlib draws; 0.3-0.5 s of a 10,000-frame take), kept by the report, and the page
+        # written again after them with the exports' results. Only a draft is lost if that first page fails.
+        with ThreadPoolExecutor(1) as beside_exports:  # waits for the draft; a draft that failed is not looked at
+            beside_exports.submit(write_run_report, staging, drawn_plots=plots)
+            export_result(staging, later, progress=options.pop("progress", False), skip_streamed=True, **options)
     glb = staging / "performance.glb"
     if glb.is_file():
         write_review_page(staging / "review.html", glb, title=f"facecap: {writer.out_dir.name}",
                           rate=writer.rate, n_frames=writer.n_frames)
-    write_run_report(staging)
+    write_run_report(staging, drawn_plots=plots)
     return writer.finish()
 
 

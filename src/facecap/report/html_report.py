@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import base64
 import datetime
+import hashlib
 import html
 import json
 import math
@@ -332,11 +333,17 @@ class _Block:
 
 
 class _Plotter:
-    """Plots of per-frame figures against the take's frame numbers, embedded as PNG."""
+    """Plots of per-frame figures against the take's frame numbers, embedded as PNG.
 
-    def __init__(self, scratch: Path, first_frame: int) -> None:
+    With ``drawn``, a dict shared by the pages of one run, a plot is drawn once: kept there by what
+    it shows (the curves' values and labels), it is reused by a page written again from the same
+    figures (see :func:`write_html_report`'s ``drawn_plots``).
+    """
+
+    def __init__(self, scratch: Path, first_frame: int, drawn: dict[bytes, bytes] | None = None) -> None:
         self.scratch = scratch
         self.first_frame = first_frame
+        self.drawn = {} if drawn is None else drawn
         self.count = 0
 
     def __call__(self, series: Mapping[str, np.ndarray | None], *, ylabel: str, caption: str) -> str:
@@ -345,11 +352,18 @@ class _Plotter:
         if not curves or len(lengths) != 1 or lengths.pop() < 2:
             return ""
         T = next(iter(curves.values())).shape[0]
-        self.count += 1
-        path = self.scratch / f"plot{self.count}.png"
-        plot_series(self.first_frame + np.arange(T), curves, path, ylabel=ylabel, xlabel="frame",
-                    size_px=_PLOT_SIZE_PX)
-        return (f"<figure><img alt=\"plot: {_e(caption)}\" src=\"{_data_uri(path.read_bytes())}\">"
+        key = hashlib.blake2b(repr((ylabel, self.first_frame, _PLOT_SIZE_PX,
+                                    [(k, v.shape, str(v.dtype)) for k, v in curves.items()])).encode())
+        for v in curves.values():
+            key.update(np.ascontiguousarray(v).tobytes())
+        png = self.drawn.get(key.digest())
+        if png is None:
+            self.count += 1
+            path = self.scratch / f"plot{self.count}.png"
+            plot_series(self.first_frame + np.arange(T), curves, path, ylabel=ylabel, xlabel="frame",
+                        size_px=_PLOT_SIZE_PX)
+            png = self.drawn[key.digest()] = path.read_bytes()
+        return (f"<figure><img alt=\"plot: {_e(caption)}\" src=\"{_data_uri(png)}\">"
                 f"<figcaption>{_e(caption)}</figcaption></figure>")
 
 
@@ -1180,6 +1194,7 @@ def write_html_report(
     pictures: Sequence[str | os.PathLike[str]] = (),
     review_page: str | os.PathLike[str] | None = None,
     title: str | None = None,
+    drawn_plots: dict[bytes, bytes] | None = None,
 ) -> Path:
     """Write the report of a run: summary, quality figures explained, warnings explained, details.
 
@@ -1200,6 +1215,10 @@ def write_html_report(
         relative to ``out_html``.
     title : str or None, optional
         Heading; default ``'<command>: <result folder name>'``.
+    drawn_plots : dict, optional
+        Plots drawn for this run, kept by what they show: a page written again with the same dict
+        draws only what changed (a job writes its page beside its exports, whose results it also
+        shows, then again after them). Default None: every plot drawn.
 
     Returns
     -------
@@ -1258,7 +1277,7 @@ def write_html_report(
                      "Open the review page (the animation in 3D)</a></p>")
     with tempfile.TemporaryDirectory(prefix="facecap-report-") as scratch:
         parts.append(_summary(run))
-        parts.append(_quality(run, _Plotter(Path(scratch), run.first_frame)))
+        parts.append(_quality(run, _Plotter(Path(scratch), run.first_frame, drawn_plots)))
     parts.append(_warnings(run))
     if images:
         parts.append("<h2 id=\"pictures\">Pictures</h2>")
