@@ -20,7 +20,8 @@ import numpy as np
 from ..errors import InputError
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
-from .expression_curves import EXPRESSION_PRESETS, _smoothstep
+from .expression_curves import EXPRESSION_PRESETS
+from .smoothstep import smoothstep
 from ..mesh.resample_polyline import resample_polyline
 from ..mesh.vertex_normals import vertex_normals
 from .ict_sample import IctSample
@@ -361,7 +362,7 @@ def wrinkle_expression_curves(n_frames: int, names: Sequence[str], *, rate: floa
     while True:
         for key in rng.permutation(keys):
             ramp_in, hold, ramp_out = rng.uniform(0.3, 0.6), rng.uniform(0.2, 0.6), rng.uniform(0.3, 0.6)
-            envelope = _smoothstep((t - at) / ramp_in) * (1.0 - _smoothstep((t - at - ramp_in - hold) / ramp_out))
+            envelope = smoothstep((t - at) / ramp_in) * (1.0 - smoothstep((t - at - ramp_in - hold) / ramp_out))
             scale = rng.uniform(*intensity)
             for shape, weight in WRINKLE_EXPRESSIONS[str(key)].items():
                 if shape in index:
