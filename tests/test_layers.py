@@ -35,9 +35,6 @@ KNOWN_DEBT = {
     "private facecap.mesh.check_mesh <- facecap.mesh.weld_duplicate_vertices",
     "private facecap.registration.align_albedo <- facecap.registration.refine_registration",
     "private facecap.registration.register_markers_to_scan <- facecap.registration.rigid_icp",
-    "private facecap.synth.wrinkle_paint <- facecap.synth.wrinkles",
-    "private facecap.wrinkles.synthesize_wrinkles <- facecap.wrinkles.surface_wrinkles",
-    "private facecap.wrinkles.wrinkle_frame_stage <- facecap.wrinkles.synthesize_wrinkles",
 }
 
 

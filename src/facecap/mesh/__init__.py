@@ -9,6 +9,8 @@ In the order a user meets them:
   face away from it (outward winding) or into it, from its geometry alone.
 - :func:`resample_polyline` (``resample_polyline.py``): points evenly spaced along
   a curve (a muscle's centre line, a wrinkle), as a :class:`ResampledPolyline`.
+- :func:`nearest_on_polyline` (``nearest_on_polyline.py``): each point's distance to a
+  polyline and where along it its nearest point lies (a wrinkle's valley line).
 - :func:`face_normals`, :func:`vertex_normals` (``vertex_normals.py``): normals
   of one frame or a stack, everywhere or at a few vertices (area-weighted).
 - :func:`weld_duplicate_vertices` (``weld_duplicate_vertices.py``): one vertex
@@ -37,6 +39,7 @@ from .factor_spd import SpdFactor, available_backends, load_backend
 from .laplacian import LaplaceOperators, laplace_operators
 from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
+from .nearest_on_polyline import nearest_on_polyline
 from .resample_polyline import ResampledPolyline, resample_polyline
 from .review_mesh import ReviewMesh, review_mesh
 from .vertex_normals import face_normals, vertex_normals
@@ -61,6 +64,7 @@ __all__ = [
     "review_mesh",
     "ReviewMesh",
     "resample_polyline",
+    "nearest_on_polyline",
     "ResampledPolyline",
     "face_normals",
     "vertex_normals",
