@@ -32,7 +32,6 @@ KNOWN_DEBT = {
     # modules with their own tests)
     "private facecap.blendshapes.select_scan_frames <- facecap.blendshapes.nnls_weights",
     "private facecap.markers.choose_temporal_sigma <- facecap.markers.bilateral_filter",
-    "private facecap.mesh.check_mesh <- facecap.mesh.weld_duplicate_vertices",
     "private facecap.registration.align_albedo <- facecap.registration.refine_registration",
     "private facecap.registration.register_markers_to_scan <- facecap.registration.rigid_icp",
 }

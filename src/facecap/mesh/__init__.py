@@ -13,6 +13,8 @@ In the order a user meets them:
   polyline and where along it its nearest point lies (a wrinkle's valley line).
 - :func:`face_normals`, :func:`vertex_normals` (``vertex_normals.py``): normals
   of one frame or a stack, everywhere or at a few vertices (area-weighted).
+- :func:`duplicate_representatives` (``duplicate_representatives.py``): which vertices sit at
+  the same position, as each one's lowest-numbered duplicate.
 - :func:`weld_duplicate_vertices` (``weld_duplicate_vertices.py``): one vertex
   per position across UV seams, as a :class:`WeldedMesh`.
 - :func:`laplace_operators` (``laplacian.py``): cotangent Laplacian and mixed
@@ -44,6 +46,7 @@ from .resample_polyline import ResampledPolyline, resample_polyline
 from .review_mesh import ReviewMesh, review_mesh
 from .vertex_normals import face_normals, vertex_normals
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
+from .duplicate_representatives import duplicate_representatives
 
 __all__ = [
     "check_mesh",
@@ -54,6 +57,7 @@ __all__ = [
     "connected_pieces",
     "facing_outward",
     "weld_duplicate_vertices",
+    "duplicate_representatives",
     "WeldedMesh",
     "laplace_operators",
     "LaplaceOperators",
