@@ -33,7 +33,6 @@ KNOWN_DEBT = {
     "private facecap.blendshapes.select_scan_frames <- facecap.blendshapes.nnls_weights",
     "private facecap.markers.choose_temporal_sigma <- facecap.markers.bilateral_filter",
     "private facecap.registration.align_albedo <- facecap.registration.refine_registration",
-    "private facecap.registration.register_markers_to_scan <- facecap.registration.rigid_icp",
 }
 
 
