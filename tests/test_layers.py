@@ -30,7 +30,6 @@ KNOWN_DEBT = {
     "arrow anatomy -> synth",
     # helpers shared by the modules of one subpackage, still private (issue 29 item 3: small public
     # modules with their own tests)
-    "private facecap.markers.choose_temporal_sigma <- facecap.markers.bilateral_filter",
     "private facecap.registration.align_albedo <- facecap.registration.refine_registration",
 }
 

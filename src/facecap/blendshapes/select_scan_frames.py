@@ -12,7 +12,7 @@ from tqdm.auto import tqdm
 
 from ..errors import FacecapWarning, InputError, MarkerError
 from ..typing import BoolArray, FloatArray, IntArray
-from ..validate import as_marker_positions
+from ..validate import as_frame_index, as_marker_positions
 from .lawson_hanson import BorderedGram, lawson_hanson, refine_on_passive, solve_on_passive
 
 __all__ = ["ScanPlan", "select_scan_frames"]
@@ -535,14 +535,6 @@ class _GreedySearch:
         self.commit(*chosen)
         return self.total
 
-def _as_frame_index(value: Any, T: int, name: str) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name}: expected a frame index (int), got {value!r}")
-    if not 0 <= int(value) < T:
-        raise InputError(f"{name}: expected a frame index in [0, {T}), got {value}")
-    return int(value)
-
-
 def select_scan_frames(
     positions: FloatArray,
     *,
@@ -691,7 +683,7 @@ def select_scan_frames(
     ):
         raise InputError(f"max_frames: expected a positive integer or None, got {max_frames!r}")
     if rest_frame is not None:
-        rest_frame = _as_frame_index(rest_frame, T, "rest_frame")
+        rest_frame = as_frame_index(rest_frame, T, name="rest_frame")
     if rate is not None:
         try:
             rate = float(rate)
