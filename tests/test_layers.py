@@ -30,22 +30,7 @@ KNOWN_DEBT = {
     "arrow anatomy -> synth",
     # helpers shared by the modules of one subpackage, still private (issue 29 item 3: small public
     # modules with their own tests)
-    "private facecap.blendshapes.select_scan_frames <- facecap.blendshapes.nnls_weights",
-    "private facecap.markers.choose_temporal_sigma <- facecap.markers.bilateral_filter",
-    "private facecap.mesh.check_mesh <- facecap.mesh.weld_duplicate_vertices",
     "private facecap.registration.align_albedo <- facecap.registration.refine_registration",
-    "private facecap.registration.register_markers_to_scan <- facecap.registration.rigid_icp",
-    "private facecap.report.plot_activations <- facecap.report.plot_series",
-    "private facecap.report.plot_activations <- facecap.report.render_mesh",
-    "private facecap.report.plot_marker_map <- facecap.report.render_mesh",
-    "private facecap.report.plot_scan_selection <- facecap.report.render_mesh",
-    "private facecap.synth.generate_performance <- facecap.synth.expression_curves",
-    "private facecap.synth.real_motion_curves <- facecap.synth.expression_curves",
-    "private facecap.synth.speech_curves <- facecap.synth.expression_curves",
-    "private facecap.synth.wrinkle_paint <- facecap.synth.wrinkles",
-    "private facecap.synth.wrinkles <- facecap.synth.expression_curves",
-    "private facecap.wrinkles.synthesize_wrinkles <- facecap.wrinkles.surface_wrinkles",
-    "private facecap.wrinkles.wrinkle_frame_stage <- facecap.wrinkles.synthesize_wrinkles",
 }
 
 

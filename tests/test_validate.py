@@ -3,7 +3,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError
-from facecap.validate import as_count, as_rigid_transform
+from facecap.validate import as_count, as_frame_index, as_rigid_transform
 
 
 def _rigid(angle_deg=30.0, t=(1.0, 2.0, 3.0)):
@@ -62,3 +62,14 @@ def test_as_count_takes_any_integer_type(good, minimum):
 def test_as_count_names_what_is_not_a_count(bad, minimum):
     with pytest.raises(InputError, match=rf"^n_frames: expected an integer >= {minimum}, got "):
         as_count(bad, name="n_frames", minimum=minimum)
+
+
+def test_as_frame_index_takes_integers_inside_the_take():
+    assert as_frame_index(0, 5, name="f") == 0
+    assert type(as_frame_index(np.int32(4), 5, name="f")) is int
+    for bad in (True, np.bool_(False), 2.0, "1", None):
+        with pytest.raises(InputError, match="rest_frame: expected an integer frame index"):
+            as_frame_index(bad, 5, name="rest_frame")
+    for outside in (-1, 5):
+        with pytest.raises(InputError, match=r"f: expected a frame index in \[0, 5\)"):
+            as_frame_index(outside, 5, name="f")

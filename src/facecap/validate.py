@@ -16,7 +16,7 @@ from .rotations import nearest_rotation
 from .typing import FloatArray, IntArray
 
 __all__ = ["as_vertices", "as_faces", "as_marker_positions", "as_points", "as_positive", "as_positive_range",
-           "as_rigid_transform", "as_count"]
+           "as_rigid_transform", "as_count", "as_frame_index"]
 
 
 def as_points(X: Any, *, name: str, dim: int = 3, allow_nan: bool = False) -> FloatArray:
@@ -92,6 +92,34 @@ def as_positive(x: Any, *, name: str, allow_zero: bool = False) -> float:
     if not np.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         raise InputError(f"{name}: expected a {'non-negative' if allow_zero else 'positive'} number, got {x!r}")
     return v
+
+
+def as_frame_index(value: object, n_frames: int, *, name: str) -> int:
+    """Return ``value`` as a frame index of a take of ``n_frames`` frames, or raise.
+
+    Parameters
+    ----------
+    value : int
+        A Python or NumPy integer (not a bool, not a float) in ``[0, n_frames)``.
+    n_frames : int
+        The take's length.
+    name : str
+        The argument's name in the message.
+
+    Returns
+    -------
+    int
+
+    Raises
+    ------
+    InputError
+        If ``value`` is not an integer or lies outside the take.
+    """
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise InputError(f"{name}: expected an integer frame index, got {value!r}")
+    if not 0 <= int(value) < n_frames:
+        raise InputError(f"{name}: expected a frame index in [0, {n_frames}), got {value}")
+    return int(value)
 
 
 def as_count(x: Any, *, name: str, minimum: int = 1) -> int:

@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
-from scipy.ndimage import gaussian_filter1d
+from scipy.ndimage import correlate1d, gaussian_filter1d
 
 from facecap.errors import FacecapWarning, InputError, MarkerError
-from facecap.markers import bilateral_filter
+from facecap.markers import bilateral_filter, bilateral_setup, bilateral_weighted_sums, marker_rest_configuration
 
 RATE = 120.0
 
@@ -214,3 +214,44 @@ def test_rejects_bad_input() -> None:
         bilateral_filter(P, rate=RATE, range_sigma_mm=0.0)
     with pytest.raises(MarkerError, match="positions"):
         bilateral_filter(np.zeros((20, 3)), rate=RATE)
+
+
+def test_weighted_sums_in_time_alone_are_the_gaussian_correlation_with_gaps_weighing_nothing():
+    rng = np.random.default_rng(11)
+    T, M, sigma_t, cut = 80, 5, 3.0, 2.5
+    P = rng.normal(size=(T, M, 3))
+    P[rng.random((T, M)) < 0.2] = np.nan
+    valid = ~np.isnan(P).any(axis=2)
+    rest = marker_rest_configuration(P, valid, 10, 0.0, cut, warn=False)
+    setup = bilateral_setup(P, sigma_t, 0.0, None, cut, rest)
+    num, den = bilateral_weighted_sums(setup, [(0, T)])
+    taps = np.exp(-0.5 * (np.arange(-8, 9) / sigma_t) ** 2)  # radius int(2.5 * 3 + 0.5) = 8 frames
+    U = np.where(valid[..., None], P - rest[0][None], 0.0)
+    np.testing.assert_allclose(den, correlate1d(valid * 1.0, taps, axis=0, mode="constant"), rtol=1e-12)
+    np.testing.assert_allclose(num, correlate1d(U, taps, axis=0, mode="constant").transpose(2, 0, 1),
+                               rtol=1e-12, atol=1e-12)
+    # only the frames asked for are filled
+    part_num, part_den = bilateral_weighted_sums(setup, [(20, 30)])
+    np.testing.assert_array_equal(part_den[20:30], den[20:30])
+    assert not part_den[:20].any() and not part_num[:, 30:].any()
+
+
+def test_rest_configuration_is_the_rest_frame_or_its_nearest_sample():
+    T, M = 30, 3
+    P = np.full((T, M, 3), np.nan)
+    P[:, 0] = np.arange(T, dtype=float)[:, None]  # moving linearly
+    P[:, 1] = 100.0  # still near the rest frame, elsewhere before it, and unseen at it
+    P[:5, 1] = -50.0
+    P[9:12, 1] = np.nan
+    P[25, 2] = 7.0  # seen only far from the rest frame
+    valid = ~np.isnan(P).any(axis=2)
+    ref, has_rest = marker_rest_configuration(P, valid, 10, 0.0, 2.5, warn=False)
+    np.testing.assert_array_equal(ref[0], [10.0] * 3)  # sigma 0: the rest frame's sample itself
+    # a window of int(2.5 * 2 + 0.5) = 5 frames: the Gaussian mean of a linear motion is its rest
+    # frame's position; a marker unseen at the rest frame is anchored at its nearest sample there;
+    # one never seen in the window at its first sample
+    ref, has_rest = marker_rest_configuration(P, valid, 10, 2.0, 2.5, warn=False)
+    np.testing.assert_allclose(ref, [[10.0] * 3, [100.0] * 3, [7.0] * 3], rtol=1e-15)
+    np.testing.assert_array_equal(has_rest, [True, True, False])
+    with pytest.warns(FacecapWarning, match="not visible within"):
+        marker_rest_configuration(P, valid, 10, 2.0, 2.5)

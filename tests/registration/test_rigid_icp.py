@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError, MeshError
 from facecap.markers import rigid_fit
-from facecap.registration import IcpResult, rigid_icp
+from facecap.registration import IcpResult, check_surface_units, rigid_icp, trimmed_inliers
 from facecap.synth import load_ict_sample
 
 
@@ -186,3 +186,38 @@ def test_one_surface_serves_many_fits() -> None:
         np.testing.assert_allclose(shared.matrix, alone.matrix, atol=1e-12)
     with pytest.raises(MeshError, match="F"):
         ClosestPointSurface(V, F + V.shape[0], reject_boundary=True)
+
+
+def test_trimmed_inliers_keep_the_smallest_usable_residuals():
+    rng = np.random.default_rng(8)
+    residual = rng.normal(size=200)
+    usable = rng.random(200) < 0.7
+    for trim in (0.01, 0.3, 0.8, 1.0):
+        mask = trimmed_inliers(residual, usable, trim)
+        u = int(usable.sum())
+        assert mask.sum() == min(u, max(3, int(np.ceil(trim * u))))
+        assert not np.any(mask & ~usable)
+        # every inlier's |residual| is at most every usable outlier's
+        assert np.abs(residual[mask]).max() <= np.abs(residual[usable & ~mask]).min(initial=np.inf)
+    assert not trimmed_inliers(residual, np.zeros(200, bool), 0.5).any()
+    np.testing.assert_array_equal(trimmed_inliers(np.array([1.0, -1.0, 1.0, 2.0]), np.ones(4, bool), 0.5),
+                                  [True, True, True, False])  # three at least; a tie keeps the earlier
+
+
+def test_check_surface_units_refuses_a_surface_in_cm_and_passes_mm():
+    # a flat 20 mm square of even triangles: its RMS radius is sqrt(2 * 20^2 / 12) = 8.16 mm (its
+    # triangles' centroids' to 1e-3), its vertices' 8.56 mm
+    u = np.linspace(-10.0, 10.0, 21)
+    x, y = np.meshgrid(u, u, indexing="ij")
+    V = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    quads = (np.arange(20)[:, None] * 21 + np.arange(20)[None]).ravel()
+    F = np.concatenate([np.column_stack([quads, quads + 21, quads + 22]), np.column_stack([quads, quads + 22, quads + 1])])
+    points = V + [0.0, 0.0, 50.0]  # where they are does not matter, only their size
+    check_surface_units(points, V, F, 0.1)
+    check_surface_units(points, 1.4 * V, F, 0.5)
+    with pytest.raises(MeshError, match=r"x1\.33"):  # 1.4 * 8.16 / 8.56
+        check_surface_units(points, 1.4 * V, F, 0.3)
+    with pytest.raises(MeshError, match=r"target_V: the scan appears to be in other units than source_points.*x0\.1"):
+        check_surface_units(points, 0.1 * V, F, 0.5)
+    with pytest.raises(MeshError, match="scan_V: .* than markers"):
+        check_surface_units(points, 1000.0 * V, F, 0.5, points="markers", surface="scan_V")

@@ -7,7 +7,7 @@ import pytest
 from matplotlib.image import imread
 
 from facecap.errors import InputError
-from facecap.report.plot_series import _nan_stats, plot_series
+from facecap.report.plot_series import _nan_stats, draw_series, plot_series
 
 
 def test_writes_png_of_requested_size_with_gappy_marker_residuals(tmp_path):
@@ -66,3 +66,25 @@ def test_mismatched_lengths_raise(tmp_path, series, bands, match):
 def test_bad_times_raise(tmp_path):
     with pytest.raises(InputError, match="times"):
         plot_series(np.array([0.0, np.nan]), {"a": np.zeros(2)}, tmp_path / "x.png", ylabel="mm")
+
+
+def test_draw_series_draws_lines_median_band_maximum_and_bands():
+    from matplotlib.figure import Figure
+
+    rng = np.random.default_rng(3)
+    T, M = 50, 7
+    t = np.arange(T) / 10.0
+    A = rng.normal(size=(T, M))
+    A[rng.random((T, M)) < 0.2] = np.nan
+    A[:, 0] = 0.0  # every row has a sample: NumPy's references warn on an all-NaN row
+    line = np.sin(t)
+    lo, hi = -np.ones(T), np.ones(T)
+    ax = Figure().add_subplot()
+    draw_series(ax, t, {"a": line, "b": A}, {"tol": (lo, hi)})
+    lines = {ln.get_label(): ln for ln in ax.get_lines()}
+    assert set(lines) == {"a", "b (median)", "b (max)"}
+    np.testing.assert_array_equal(lines["a"].get_ydata(), line)
+    np.testing.assert_allclose(lines["b (median)"].get_ydata(), np.nanmedian(A, axis=1), rtol=1e-12)
+    np.testing.assert_array_equal(lines["b (max)"].get_ydata(), np.nanmax(A, axis=1))
+    assert lines["a"].get_color() == "C0" and lines["b (median)"].get_color() == "C1"
+    assert [c.get_label() for c in ax.collections] == ["b (to p95)", "tol"]

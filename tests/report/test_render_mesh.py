@@ -8,7 +8,7 @@ from matplotlib import colormaps
 from matplotlib.image import imread
 
 from facecap.errors import InputError, MeshError
-from facecap.report.render_mesh import MeshPanel, draw_mesh, render_mesh, render_side_by_side
+from facecap.report.render_mesh import MeshPanel, as_size_px, draw_mesh, render_mesh, render_side_by_side
 
 # A square [-1, 1]^2 in the z = 0 plane, counter-clockwise seen from +z (facing the front camera).
 SQUARE_V = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
@@ -216,3 +216,13 @@ def test_draw_mesh_draws_what_render_mesh_renders(tmp_path):
     with pytest.raises(MeshError, match="F"):
         draw_mesh(ax, V, F + V.shape[0])
 
+
+
+def test_as_size_px_gives_whole_pixels_and_names_the_argument():
+    assert as_size_px((640.9, np.int64(480))) == (640, 480)
+    assert all(type(v) is int for v in as_size_px(np.array([16.0, 16.0])))
+    with pytest.raises(InputError, match=r"panel_size_px: expected at least 16 x 16"):
+        as_size_px((15, 100), name="panel_size_px")
+    for bad in (None, 640, (1, 2, 3), ("a", "b")):
+        with pytest.raises(InputError, match=r"size_px: expected \(width, height\)"):
+            as_size_px(bad)

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from facecap.errors import InputError
-from facecap.wrinkles import SurfaceWrinkle, cross_section, merge_camera_wrinkles, synthesize_wrinkles
+from facecap.wrinkles import (SurfaceWrinkle, cross_section, merge_camera_wrinkles, synthesize_wrinkles,
+                              wrinkle_depth_scale)
 from facecap.wrinkles.surface_wrinkles import names_wrinkle
 
 
@@ -112,3 +113,17 @@ def test_lines_of_other_paints_or_of_one_camera_stay_apart() -> None:
     assert len(merge_camera_wrinkles([[a, same_camera], [other_paint]])) == 3
     # a camera whose name is the start of another's still merges with it
     assert len(merge_camera_wrinkles([[_line("cam:0", 0.0, 20.0)], [_line("cam_b:0", 0.0, 20.0, y=0.3)]])) == 1
+
+
+def test_depth_scale_by_number_by_identity_and_by_the_cameras_parts() -> None:
+    merged = _line("cam_left:2+cam_right:1", 0.0, 10.0)
+    alone = _line("cam_left:4", 0.0, 10.0)
+    assert wrinkle_depth_scale(merged, 0.7) == 0.7
+    assert wrinkle_depth_scale(merged, {"cam_left:2": 0.5, "cam_right:1": 3.0}) == 1.5  # parts multiply
+    assert wrinkle_depth_scale(merged, {"cam_left:2+cam_right:1": 2.0, "cam_left:2": 0.5}) == 2.0  # full name wins
+    assert wrinkle_depth_scale(alone, {"cam_left:2": 0.5}) == 1.0  # not named: kept
+    # synthesize_wrinkles imposes the valley of the wrinkle made that much deeper
+    V, F = _sheet()
+    scaled = synthesize_wrinkles(V, F, [merged], shell=False, depth_scale={"cam_left:2": 0.5, "cam_right:1": 3.0})
+    deeper = synthesize_wrinkles(V, F, [_line("other:0", 0.0, 10.0, depth=0.5 * 1.5)], shell=False)
+    np.testing.assert_allclose(scaled.vertices, deeper.vertices, atol=1e-12)

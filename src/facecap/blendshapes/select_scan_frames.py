@@ -12,8 +12,8 @@ from tqdm.auto import tqdm
 
 from ..errors import FacecapWarning, InputError, MarkerError
 from ..typing import BoolArray, FloatArray, IntArray
-from ..validate import as_marker_positions
-from .nnls_weights import _BorderedGram, _lawson_hanson, _ls_on_passive, _refine
+from ..validate import as_frame_index, as_marker_positions
+from .lawson_hanson import BorderedGram, lawson_hanson, refine_on_passive, solve_on_passive
 
 __all__ = ["ScanPlan", "select_scan_frames"]
 
@@ -220,8 +220,8 @@ class _GreedySearch:
         basis_norms[:, :k] = self.xnorm[S]
         basis_norms[:, k] = self.xnorm[cand]
         tolg = _GRAD_TOL * self.xnorm[rows, None] * basis_norms
-        gram = _BorderedGram(self.Gs, a, self.sqn[cand])
-        _lawson_hanson(gram, C, W, P, R, count, tolg)
+        gram = BorderedGram(self.Gs, a, self.sqn[cand])
+        lawson_hanson(gram, C, W, P, R, count, tolg)
         if not precise:
             GW = gram.times(W, np.arange(n))
             e2 = self.sqn[rows] - 2.0 * np.einsum("nk,nk->n", W, C) + np.einsum("nk,nk->n", W, GW)
@@ -236,7 +236,7 @@ class _GreedySearch:
         grad = np.empty((n, k + 1))
         grad[:, :k] = residual @ XT[S].T
         grad[:, k] = np.einsum("nd,nd->n", residual, Xc)
-        dW = _ls_on_passive(R, count, np.arange(n), grad)
+        dW = solve_on_passive(R, count, np.arange(n), grad)
         dW[~P] = 0.0
         W = np.maximum(W + dW, 0.0)
         residual = Xr - W[:, :k] @ XT[S] - W[:, k:] * Xc
@@ -289,7 +289,7 @@ class _GreedySearch:
         if k == 0:
             return np.zeros((0, self.T))
         B = self.XT[self.S].T
-        W = _refine(B, self.XT, self.W[:, :k].copy(), self.P[:, :k], self.R[:, :k, :k], self.count)
+        W = refine_on_passive(B, self.XT, self.W[:, :k].copy(), self.P[:, :k], self.R[:, :k, :k], self.count)
         return np.ascontiguousarray(W.T)
 
     # ------------------------------------------------------------------ bounds
@@ -535,14 +535,6 @@ class _GreedySearch:
         self.commit(*chosen)
         return self.total
 
-def _as_frame_index(value: Any, T: int, name: str) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name}: expected a frame index (int), got {value!r}")
-    if not 0 <= int(value) < T:
-        raise InputError(f"{name}: expected a frame index in [0, {T}), got {value}")
-    return int(value)
-
-
 def select_scan_frames(
     positions: FloatArray,
     *,
@@ -691,7 +683,7 @@ def select_scan_frames(
     ):
         raise InputError(f"max_frames: expected a positive integer or None, got {max_frames!r}")
     if rest_frame is not None:
-        rest_frame = _as_frame_index(rest_frame, T, "rest_frame")
+        rest_frame = as_frame_index(rest_frame, T, name="rest_frame")
     if rate is not None:
         try:
             rate = float(rate)

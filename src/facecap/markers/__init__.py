@@ -4,7 +4,9 @@ The usual order for a raw take is :func:`fill_gaps` (``fill_gaps.py``),
 :func:`stabilize_head` (``stabilize_head.py``), then :func:`bilateral_filter`
 (``bilateral_filter.py``) on the stabilised positions, its temporal sigma chosen
 for the take by :func:`choose_temporal_sigma` (``choose_temporal_sigma.py``:
-leave-self-out cross-validation); :func:`condition_take`
+leave-self-out cross-validation, with the filter's parts both share:
+:func:`marker_rest_configuration`, :func:`bilateral_setup` as a :class:`BilateralSetup`,
+:func:`bilateral_weighted_sums`); :func:`condition_take`
 (``condition_take.py``) runs them in that order, and :func:`auto_stabilize`
 uses a head band when it is rigid, else :func:`consensus_stabilize`
 (``consensus_stabilize.py``: per frame, the rigid motion most skin markers
@@ -25,7 +27,8 @@ and the map between them.
 
 from __future__ import annotations
 
-from .bilateral_filter import bilateral_filter
+from .bilateral_filter import (BilateralSetup, bilateral_filter, bilateral_setup, bilateral_weighted_sums,
+                               marker_rest_configuration)
 from .check_scan_units import check_scan_units
 from .check_take_units import check_take_units
 from .choose_temporal_sigma import DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S, choose_temporal_sigma
@@ -77,6 +80,10 @@ __all__ = [
     "stabilize_head",
     "Stabilization",
     "bilateral_filter",
+    "BilateralSetup",
+    "marker_rest_configuration",
+    "bilateral_setup",
+    "bilateral_weighted_sums",
     "choose_temporal_sigma",
     "DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S",
     "condition_take",

@@ -10,15 +10,20 @@ from scipy.spatial import cKDTree
 
 from ..errors import FacecapWarning, InputError
 from ..typing import FloatArray
-from ..validate import as_marker_positions, as_positive
+from ..validate import as_frame_index, as_marker_positions, as_positive
 
-__all__ = ["bilateral_filter"]
+__all__ = ["bilateral_filter", "BilateralSetup", "marker_rest_configuration", "bilateral_setup",
+           "bilateral_weighted_sums"]
 
 _CHUNK_ELEMENTS = 10_000  # (frames x markers) per block: keeps the working set in cache
 
 
-class _FilterSetup(NamedTuple):
-    """What the filter's weighted sums need, for one set of sigmas (see :func:`bilateral_filter`)."""
+class BilateralSetup(NamedTuple):
+    """What the filter's weighted sums need, for one set of sigmas (made by :func:`bilateral_setup`).
+
+    ``T`` frames, ``M`` markers, ``W`` the temporal window's radius in frames, ``K`` the most
+    spatial neighbours of a marker (the marker itself included). Lengths in mm.
+    """
 
     valid: np.ndarray  # (T, M) bool
     ref: np.ndarray  # (M, 3) rest configuration
@@ -33,12 +38,34 @@ class _FilterSetup(NamedTuple):
     neg_inv2r: float | None
 
 
-def _rest_configuration(P: np.ndarray, valid: np.ndarray, rest: int, sigma_rest: float,
-                        cut: float, *, warn: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """``(ref (M, 3), has_rest (M,))``: each marker's rest position and whether it is seen near the rest frame.
+def marker_rest_configuration(P: np.ndarray, valid: np.ndarray, rest: int, sigma_rest: float,
+                              cut: float, *, warn: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Each marker's rest position, about which :func:`bilateral_filter` filters displacements.
 
-    Anchored at (or nearest to) the rest frame, Gaussian-averaged around it;
-    warns about markers not seen within the rest window unless ``warn`` is False.
+    Anchored at the marker's sample at (or nearest to) the rest frame, plus the Gaussian-weighted
+    mean of its deviations from that anchor over the rest window (``cut * sigma_rest`` frames).
+
+    Parameters
+    ----------
+    P : (T, M, 3) float64 array, mm
+        Marker positions, NaN in gaps.
+    valid : (T, M) bool array
+        Where ``P`` holds a sample.
+    rest : int
+        The rest frame.
+    sigma_rest : float, frames
+        The Gaussian's sigma; 0 takes the anchor alone.
+    cut : float
+        The window's radius in sigmas.
+    warn : bool, default True
+        Warn (:class:`FacecapWarning`) of markers not seen within the rest window.
+
+    Returns
+    -------
+    ref : (M, 3) float64 array, mm
+        The rest positions (a marker never seen near the rest frame: its first sample).
+    has_rest : (M,) bool array
+        Whether each marker is seen within the rest window.
     """
     T, M, _ = P.shape
     W_rest = int(cut * sigma_rest + 0.5)
@@ -66,9 +93,29 @@ def _rest_configuration(P: np.ndarray, valid: np.ndarray, rest: int, sigma_rest:
     return ref, has_rest
 
 
-def _filter_setup(P: np.ndarray, sigma_t: float, sigma_s: float, sigma_r: float | None, cut: float,
-                  rest_state: tuple[np.ndarray, np.ndarray]) -> _FilterSetup:
-    """Spatial neighbours and padded displacements of a validated take (or a stretch of one) about its rest."""
+def bilateral_setup(P: np.ndarray, sigma_t: float, sigma_s: float, sigma_r: float | None, cut: float,
+                    rest_state: tuple[np.ndarray, np.ndarray]) -> BilateralSetup:
+    """Spatial neighbours and padded displacements of a validated take (or a stretch of one) about its rest.
+
+    Parameters
+    ----------
+    P : (T, M, 3) float64 array, mm
+        Marker positions, NaN in gaps.
+    sigma_t : float, frames
+        The temporal Gaussian's sigma (0: no temporal smoothing).
+    sigma_s : float, mm
+        The spatial Gaussian's sigma over rest positions (0: no spatial neighbours).
+    sigma_r : float or None, mm
+        The range Gaussian's sigma over displacement differences; None leaves it out.
+    cut : float
+        Every window's radius in sigmas.
+    rest_state : ((M, 3) float64 array, (M,) bool array)
+        :func:`marker_rest_configuration`'s result (for the whole take when ``P`` is a stretch).
+
+    Returns
+    -------
+    BilateralSetup
+    """
     T, M, _ = P.shape
     valid = ~np.isnan(P).any(axis=2)
     W = int(cut * sigma_t + 0.5)  # the window radius scipy.ndimage.gaussian_filter1d uses
@@ -107,11 +154,30 @@ def _filter_setup(P: np.ndarray, sigma_t: float, sigma_s: float, sigma_r: float 
     Vpad = np.zeros((T + 2 * W, M))
     Vpad[W : W + T] = valid
     neg_inv2r = None if sigma_r is None else -0.5 / sigma_r**2
-    return _FilterSetup(valid, ref, U, Upad, Vpad, nbr, g_s, taus, g_t, W, neg_inv2r)
+    return BilateralSetup(valid, ref, U, Upad, Vpad, nbr, g_s, taus, g_t, W, neg_inv2r)
 
 
-def _weighted_sums(setup: _FilterSetup, frame_ranges: list[tuple[int, int]]) -> tuple[np.ndarray, np.ndarray]:
-    """The filter's numerator (3, T, M) and denominator (T, M), filled for the frames of ``frame_ranges`` only."""
+def bilateral_weighted_sums(setup: BilateralSetup, frame_ranges: list[tuple[int, int]]
+                            ) -> tuple[np.ndarray, np.ndarray]:
+    """The bilateral filter's weighted sums of displacements: their ratio is the filtered displacement.
+
+    Each sample's weight is the product of the temporal, spatial and (if set) range Gaussians;
+    gaps weigh 0. A valid sample's own weight is 1.
+
+    Parameters
+    ----------
+    setup : BilateralSetup
+        From :func:`bilateral_setup`.
+    frame_ranges : list of (int, int)
+        ``[first, stop)`` frame ranges to fill; other frames stay 0.
+
+    Returns
+    -------
+    num : (3, T, M) float64 array, mm
+        Weighted sums of the displacements from the rest positions, per component.
+    den : (T, M) float64 array
+        Sums of the weights.
+    """
     valid, U, Upad, Vpad, nbr, g_s = setup.valid, setup.U, setup.Upad, setup.Vpad, setup.nbr, setup.g_s
     taus, g_t, W, neg_inv2r = setup.taus, setup.g_t, setup.W, setup.neg_inv2r
     T, M = valid.shape
@@ -149,14 +215,6 @@ def _weighted_sums(setup: _FilterSetup, frame_ranges: list[tuple[int, int]]) -> 
             den[c0:c1, cols] += den_c
 
     return num, den
-
-
-def _frame_index(value: object, n_frames: int, *, name: str) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise InputError(f"{name}: expected an integer frame index, got {value!r}")
-    if not 0 <= int(value) < n_frames:
-        raise InputError(f"{name}: expected a frame index in [0, {n_frames}), got {value}")
-    return int(value)
 
 
 def bilateral_filter(
@@ -299,7 +357,7 @@ def bilateral_filter(
     """
     P = as_marker_positions(positions, name="positions")
     T, M, _ = P.shape
-    rest = _frame_index(rest_frame, T, name="rest_frame")
+    rest = as_frame_index(rest_frame, T, name="rest_frame")
     if temporal_sigma_frames is not None:
         sigma_t = as_positive(temporal_sigma_frames, name="temporal_sigma_frames", allow_zero=True)
     else:
@@ -317,8 +375,8 @@ def bilateral_filter(
     rest_average = as_positive(rest_average, name="rest_average", allow_zero=True)
 
     valid = ~np.isnan(P).any(axis=2)
-    setup = _filter_setup(P, sigma_t, sigma_s, sigma_r, cut, _rest_configuration(P, valid, rest, rest_average * sigma_t, cut))
-    num, den = _weighted_sums(setup, [(0, T)])
+    setup = bilateral_setup(P, sigma_t, sigma_s, sigma_r, cut, marker_rest_configuration(P, valid, rest, rest_average * sigma_t, cut))
+    num, den = bilateral_weighted_sums(setup, [(0, T)])
     valid, ref = setup.valid, setup.ref
     ubar = (num / np.where(den > 0, den, 1.0)).transpose(1, 2, 0)
     out = np.ascontiguousarray(ref[None] + ubar)

@@ -9,8 +9,8 @@ import numpy as np
 from ..errors import InputError
 from ..structures import TemporalSigmaChoice
 from ..typing import FloatArray
-from ..validate import as_marker_positions, as_positive
-from .bilateral_filter import _filter_setup, _frame_index, _rest_configuration, _weighted_sums
+from ..validate import as_frame_index, as_marker_positions, as_positive
+from .bilateral_filter import bilateral_setup, bilateral_weighted_sums, marker_rest_configuration
 
 __all__ = ["choose_temporal_sigma", "DEFAULT_TEMPORAL_SIGMA_CANDIDATES_S"]
 
@@ -95,7 +95,7 @@ def choose_temporal_sigma(
     """
     P = as_marker_positions(positions, name="positions")
     T = P.shape[0]
-    rest = _frame_index(rest_frame, T, name="rest_frame")
+    rest = as_frame_index(rest_frame, T, name="rest_frame")
     frame_rate = as_positive(rate, name="rate")
     sigmas = tuple(float(as_positive(s, name="candidates_s", allow_zero=True)) for s in candidates_s)
     if not sigmas:
@@ -116,13 +116,13 @@ def choose_temporal_sigma(
         sigma_t = sigma * frame_rate
         reach = int(cut * sigma_t + 0.5)  # the filter's window radius: context each block needs
         # the whole take's rest; silent: the filter itself warns of markers missing there, once
-        rest_state = _rest_configuration(P, valid, rest, average * sigma_t, cut, warn=False)
+        rest_state = marker_rest_configuration(P, valid, rest, average * sigma_t, cut, warn=False)
         squared_sum, count = 0.0, 0
         for first, stop in blocks:
             lo, hi = max(0, first - reach), min(T, stop + reach)
-            setup = _filter_setup(P[lo:hi], sigma_t, sigma_s, sigma_r, cut, rest_state)
+            setup = bilateral_setup(P[lo:hi], sigma_t, sigma_s, sigma_r, cut, rest_state)
             inner = slice(first - lo, stop - lo)
-            num, den = _weighted_sums(setup, [(inner.start, inner.stop)])
+            num, den = bilateral_weighted_sums(setup, [(inner.start, inner.stop)])
             U, own = setup.U[:, inner], setup.valid[inner]
             others = den[inner] - own  # the weight of the other samples: a valid sample's own weight is 1
             usable = own & (others > 1e-9)

@@ -9,8 +9,12 @@ In the order a user meets them:
   face away from it (outward winding) or into it, from its geometry alone.
 - :func:`resample_polyline` (``resample_polyline.py``): points evenly spaced along
   a curve (a muscle's centre line, a wrinkle), as a :class:`ResampledPolyline`.
+- :func:`nearest_on_polyline` (``nearest_on_polyline.py``): each point's distance to a
+  polyline and where along it its nearest point lies (a wrinkle's valley line).
 - :func:`face_normals`, :func:`vertex_normals` (``vertex_normals.py``): normals
   of one frame or a stack, everywhere or at a few vertices (area-weighted).
+- :func:`duplicate_representatives` (``duplicate_representatives.py``): which vertices sit at
+  the same position, as each one's lowest-numbered duplicate.
 - :func:`weld_duplicate_vertices` (``weld_duplicate_vertices.py``): one vertex
   per position across UV seams, as a :class:`WeldedMesh`.
 - :func:`laplace_operators` (``laplacian.py``): cotangent Laplacian and mixed
@@ -37,10 +41,12 @@ from .factor_spd import SpdFactor, available_backends, load_backend
 from .laplacian import LaplaceOperators, laplace_operators
 from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
+from .nearest_on_polyline import nearest_on_polyline
 from .resample_polyline import ResampledPolyline, resample_polyline
 from .review_mesh import ReviewMesh, review_mesh
 from .vertex_normals import face_normals, vertex_normals
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
+from .duplicate_representatives import duplicate_representatives
 
 __all__ = [
     "check_mesh",
@@ -51,6 +57,7 @@ __all__ = [
     "connected_pieces",
     "facing_outward",
     "weld_duplicate_vertices",
+    "duplicate_representatives",
     "WeldedMesh",
     "laplace_operators",
     "LaplaceOperators",
@@ -61,6 +68,7 @@ __all__ = [
     "review_mesh",
     "ReviewMesh",
     "resample_polyline",
+    "nearest_on_polyline",
     "ResampledPolyline",
     "face_normals",
     "vertex_normals",

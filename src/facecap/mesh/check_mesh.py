@@ -13,7 +13,7 @@ from ..errors import MeshError
 from ..typing import FloatArray, IntArray
 from ..validate import as_points, as_positive
 from .connected_pieces import connected_pieces
-from .weld_duplicate_vertices import _duplicate_representatives
+from .duplicate_representatives import duplicate_representatives
 
 __all__ = ["check_mesh", "MeshCheck"]
 
@@ -306,7 +306,7 @@ def check_mesh(
     duplicate_of = np.arange(n, dtype=np.int64)
     fin_idx = np.flatnonzero(finite)
     if fin_idx.size > 1:
-        duplicate_of[fin_idx] = fin_idx[_duplicate_representatives(V[fin_idx], tol)]
+        duplicate_of[fin_idx] = fin_idx[duplicate_representatives(V[fin_idx], tol)]
 
     return MeshCheck(
         n_vertices=n,

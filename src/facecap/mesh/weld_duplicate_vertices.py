@@ -5,12 +5,10 @@ from __future__ import annotations
 from typing import Any, NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from ..typing import FloatArray, IntArray
 from ..validate import as_faces, as_positive, as_vertices
+from .duplicate_representatives import duplicate_representatives
 
 __all__ = ["weld_duplicate_vertices", "WeldedMesh"]
 
@@ -91,28 +89,9 @@ def weld_duplicate_vertices(V: Any, F: Any, *, tolerance: float = 1e-6) -> Welde
     V = as_vertices(V, name="V")
     F = as_faces(F, V.shape[0], name="F")
     tol = as_positive(tolerance, name="tolerance", allow_zero=True)
-    rep = _duplicate_representatives(V, tol)
+    rep = duplicate_representatives(V, tol)
     keep = np.flatnonzero(rep == np.arange(V.shape[0]))
     new_of_kept = np.empty(V.shape[0], dtype=np.int64)
     new_of_kept[keep] = np.arange(keep.size)
     welded_index = new_of_kept[rep]
     return WeldedMesh(np.ascontiguousarray(V[keep]), welded_index[F], welded_index)
-
-
-def _duplicate_representatives(V: FloatArray, tolerance: float) -> IntArray:
-    """(n,) int64: for each vertex, the lowest-numbered vertex of its group of duplicates.
-
-    Vertices within ``tolerance`` of each other are grouped transitively;
-    a vertex with no duplicate is its own representative. ``V`` must be finite.
-    """
-    n = V.shape[0]
-    pairs = cKDTree(V).query_pairs(r=tolerance, output_type="ndarray")
-    index = np.arange(n, dtype=np.int64)
-    if pairs.size == 0:
-        return index
-    graph = sp.coo_matrix(
-        (np.ones(pairs.shape[0], dtype=np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n)
-    ).tocsr()
-    _, group = connected_components(graph, directed=False)
-    _, lowest = np.unique(group, return_index=True)  # groups are labelled 0 .. n_groups - 1
-    return lowest[group].astype(np.int64)

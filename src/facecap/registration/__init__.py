@@ -20,7 +20,8 @@ In the order a user meets them:
   :func:`cylindrical_map` (``cylindrical_map.py``) unwrap.
 - :func:`rigid_icp` (``rigid_icp.py``): rigid ICP of points onto a surface, as
   an :class:`IcpResult`; :func:`rigid_icp_to_surface` runs it on a
-  :class:`ClosestPointSurface` built once.
+  :class:`ClosestPointSurface` built once; :func:`trimmed_inliers` picks a step's inliers and
+  :func:`check_surface_units` refuses a surface in other units than the points.
 - :func:`find_marker_map` (``find_marker_map.py``): where each marker of a take
   sits on a scan, found by a global search from the rest frame, as a :class:`MarkerMap`;
   :func:`marker_status` names each marker's outcome. :func:`rest_markers_of`
@@ -49,7 +50,8 @@ from .register_scans import (
     register_scans,
 )
 from .register_template_to_scan import DEFAULT_CLOSEST_POINT_WEIGHTS, TemplateRegistration, register_template_to_scan
-from .rigid_icp import ClosestPointSurface, IcpResult, rigid_icp, rigid_icp_to_surface
+from .rigid_icp import (ClosestPointSurface, IcpResult, check_surface_units, rigid_icp, rigid_icp_to_surface,
+                        trimmed_inliers)
 from .find_marker_map import (
     ALONG_SKIN_FLOOR_MM,
     ALONG_SKIN_PER_HEIGHT,
@@ -90,6 +92,8 @@ __all__ = [
     "rigid_icp",
     "IcpResult",
     "rigid_icp_to_surface",
+    "check_surface_units",
+    "trimmed_inliers",
     "ClosestPointSurface",
     "find_marker_map",
     "MarkerMap",

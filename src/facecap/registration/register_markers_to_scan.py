@@ -15,7 +15,7 @@ from ..mesh.facing_outward import facing_outward
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_points, as_positive, as_rigid_transform
-from .rigid_icp import ClosestPointSurface, IcpResult, _check_units, _inlier_mask, rigid_icp_to_surface
+from .rigid_icp import ClosestPointSurface, IcpResult, check_surface_units, rigid_icp_to_surface, trimmed_inliers
 
 __all__ = ["MarkerRegistration", "register_markers_to_scan", "scan_winding", "MIN_FACING_OUTWARD"]
 
@@ -334,7 +334,7 @@ def register_markers_to_scan(
 
     V, F = scan.vertices, scan.faces
     if size_tolerance is not None:
-        _check_units(X0[seen], V, F, as_positive(size_tolerance, name="size_tolerance"),
+        check_surface_units(X0[seen], V, F, as_positive(size_tolerance, name="size_tolerance"),
                      points="markers_frame", surface="scan")
     if not 0.0 < float(trim) <= 1.0:
         raise InputError(f"trim: expected a fraction in (0, 1], got {trim!r}")
@@ -464,7 +464,7 @@ def _subspace_icp(
         Y = (Xs + D @ c) @ R.T + t
         _, n, C, on_rim = surface.closest(Y)
         residual = np.einsum("md,md->m", Y - C, n) - target_offset
-        inl = _inlier_mask(residual, ~on_rim & (np.abs(residual) <= max_residual_mm), trim)
+        inl = trimmed_inliers(residual, ~on_rim & (np.abs(residual) <= max_residual_mm), trim)
         if inl.sum() < 3 + (6 if joint else 0):
             break
         energy = float(np.sum(residual[inl] ** 2) + deformation_weight * np.sum((D @ c) ** 2)) / inl.sum()

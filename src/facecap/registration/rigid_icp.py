@@ -15,7 +15,8 @@ from ..markers.rigid_fit import rigid_fit
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_faces, as_points, as_positive, as_rigid_transform, as_vertices
 
-__all__ = ["IcpResult", "rigid_icp", "rigid_icp_to_surface", "ClosestPointSurface"]
+__all__ = ["IcpResult", "rigid_icp", "rigid_icp_to_surface", "ClosestPointSurface", "check_surface_units",
+           "trimmed_inliers"]
 
 _METHODS = ("point_to_plane", "point_to_point")
 
@@ -158,11 +159,34 @@ def _surface_moments(V: FloatArray, F: IntArray) -> tuple[FloatArray, FloatArray
     return c0, (X * w[:, None]).T @ X
 
 
-def _check_units(
+def check_surface_units(
     P: FloatArray, V: FloatArray, F: IntArray, tolerance: float, *, points: str = "source_points",
     surface: str = "target_V",
 ) -> None:
-    """Raise if the surface's RMS radius differs from the points' by more than ``tolerance``."""
+    """Raise if a surface looks to be in other units than the points to be fitted to it.
+
+    Compares sizes: the points' RMS distance from their centroid against the surface's, taken
+    over its area (the square root of the trace of its triangles' area-weighted covariance). A file in cm read
+    as mm comes out at x0.1, in m at x0.001.
+
+    Parameters
+    ----------
+    P : (p, 3) float64 array, mm
+        The points (finite).
+    V : (n, 3) float64 array, mm
+    F : (m, 3) int64 array
+        The surface.
+    tolerance : float
+        The largest relative difference of the two sizes allowed: the ratio must lie in
+        ``[1 / (1 + tolerance), 1 + tolerance]``. Either size 0 passes.
+    points, surface : str
+        The arguments' names in the message.
+
+    Raises
+    ------
+    MeshError
+        If the sizes differ by more than ``tolerance``; the message says how to convert.
+    """
     Pc = P - P.mean(axis=0)
     size_points = float(np.sqrt((Pc**2).sum(axis=1).mean()))
     _, cov = _surface_moments(V, F)
@@ -192,8 +216,31 @@ def _proper_axis_maps() -> list[FloatArray]:
     return out
 
 
-def _inlier_mask(residual: FloatArray, usable: BoolArray, trim: float) -> BoolArray:
-    """The ``trim`` fraction of usable pairs with the smallest |residual| (at least 3)."""
+def trimmed_inliers(residual: FloatArray, usable: BoolArray, trim: float) -> BoolArray:
+    """The ``trim`` fraction of the usable pairs with the smallest ``|residual|`` (at least 3).
+
+    The inliers of one trimmed ICP step: ``ceil(trim * u)`` of the ``u`` usable pairs, at least
+    three (a rigid fit's minimum) and at most all of them; ties keep the earlier pair.
+
+    Parameters
+    ----------
+    residual : (p,) float64 array, mm
+        Each pair's signed residual.
+    usable : (p,) bool array
+        Pairs allowed to be inliers.
+    trim : float
+        Fraction in (0, 1] of the usable pairs to keep.
+
+    Returns
+    -------
+    (p,) bool array
+        The inliers, a subset of ``usable``.
+
+    Examples
+    --------
+    >>> trimmed_inliers(np.array([0.5, -0.1, 3.0, 0.2, -2.0]), np.ones(5, bool), 0.5).tolist()
+    [True, True, False, True, False]
+    """
     idx = np.flatnonzero(usable)
     keep = min(idx.size, max(3, int(np.ceil(trim * idx.size))))
     mask = np.zeros(residual.shape[0], dtype=bool)
@@ -237,7 +284,7 @@ def _iterate(
             Q = C + offset_mm * n
             residual = np.linalg.norm(Y - Q, axis=1)
         usable = ~on_rim & np.all(np.isfinite(n), axis=1)
-        inl = _inlier_mask(residual, usable, trim)
+        inl = trimmed_inliers(residual, usable, trim)
         if inl.sum() < 3:
             raise SolverError(
                 "rigid_icp: fewer than 3 source points have a closest point inside the target surface; "
@@ -442,7 +489,7 @@ def rigid_icp(
         raise InputError(f"offset_mm: expected a finite number, got {offset_mm!r}")
     T0 = None if init is None else as_rigid_transform(init, name="init", project=True)
     if size_tolerance is not None:
-        _check_units(X[finite], V, F, as_positive(size_tolerance, name="size_tolerance"))
+        check_surface_units(X[finite], V, F, as_positive(size_tolerance, name="size_tolerance"))
     surface = ClosestPointSurface(V, F, reject_boundary=bool(reject_boundary))
     return rigid_icp_to_surface(X, surface, T0, method=method, max_iterations=int(max_iterations),
                                 offset_mm=offset_mm, trim=float(trim), tolerance_mm=tolerance_mm)
@@ -496,7 +543,7 @@ def rigid_icp_to_surface(
         residual = np.einsum("kd,kd->k", Y - C, n) - offset_mm
     else:
         residual = np.linalg.norm(Y - (C + offset_mm * n), axis=1)
-    inl = _inlier_mask(residual, ~on_rim, trim)
+    inl = trimmed_inliers(residual, ~on_rim, trim)
     distances = np.full(X.shape[0], np.nan)
     distances[finite] = np.sqrt(sq)
     inliers = np.zeros(X.shape[0], dtype=bool)

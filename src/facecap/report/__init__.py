@@ -11,10 +11,11 @@ In the order a user meets them:
   arrays, as :class:`DenseError` with per-region :class:`RegionError`.
 - :func:`render_mesh`, :func:`render_side_by_side` (``render_mesh.py``):
   headless pictures of a mesh, as :class:`MeshPanel` panels; :func:`draw_mesh` draws one into
-  an axes for pictures that mark things on it.
+  an axes for pictures that mark things on it; :func:`as_size_px` checks every picture's size.
 - :func:`plot_marker_map` (``plot_marker_map.py``): a scan with the places ``facecap map`` found
   for the markers, labelled, the ones to check in another colour.
-- :func:`plot_series` (``plot_series.py``): per-frame quantities against time.
+- :func:`plot_series` (``plot_series.py``): per-frame quantities against time;
+  :func:`draw_series` draws them into an axes of another picture.
 - :func:`plot_scan_selection` (``plot_scan_selection.py``): a scan plan's error per added
   scan (Huang et al. 2011, Fig. 8) and its chosen frames over the take.
 - :func:`plot_activations` (``plot_activations.py``): muscle activations over a take, with
@@ -42,9 +43,9 @@ from .explain_warning import WarningAdvice, explain_warning
 from .html_report import write_html_report
 from .plot_activations import plot_activations
 from .plot_scan_selection import plot_scan_selection
-from .plot_series import plot_series
+from .plot_series import draw_series, plot_series
 from .plot_marker_map import MARKER_MAP_COLORS, plot_marker_map
-from .render_mesh import MeshPanel, draw_mesh, render_mesh, render_side_by_side
+from .render_mesh import MeshPanel, as_size_px, draw_mesh, render_mesh, render_side_by_side
 from .review_page import EMBED_LIMIT_BYTES, ReviewServer, serve, write_review_page
 from .write_run_report import write_run_report
 
@@ -59,10 +60,12 @@ __all__ = [
     "render_mesh",
     "render_side_by_side",
     "draw_mesh",
+    "as_size_px",
     "plot_marker_map",
     "MARKER_MAP_COLORS",
     "MeshPanel",
     "plot_series",
+    "draw_series",
     "plot_scan_selection",
     "plot_activations",
     "write_review_page",

@@ -13,8 +13,8 @@ from matplotlib.figure import Figure
 
 from ..errors import InputError
 from ..io.atomic_write import atomic_path
-from .plot_series import _draw_series
-from .render_mesh import _as_size
+from .plot_series import draw_series
+from .render_mesh import as_size_px
 
 __all__ = ["plot_activations"]
 
@@ -90,7 +90,7 @@ def plot_activations(times: Any, activations: Any, names: Sequence[str], path: s
     residual = None if max_residual_mm is None else np.asarray(max_residual_mm, dtype=np.float64).reshape(-1)
     if residual is not None and residual.size != T:
         raise InputError(f"max_residual_mm: expected {T} values, got {residual.size}")
-    w, h = _as_size(size_px)
+    w, h = as_size_px(size_px)
     # each caption line wrapped to the picture's width (10 pt text: at most about 7.8 px a character)
     lines = [part for line in (caption.splitlines() if caption else [])
              for part in (textwrap.wrap(line, width=int(w / 7.8)) or [""])]
@@ -105,7 +105,7 @@ def plot_activations(times: Any, activations: Any, names: Sequence[str], path: s
     series = {names[i]: A[:, i] for i in order[:_NAMED]}
     if A.shape[1] > _NAMED:
         series[f"the other {A.shape[1] - _NAMED} muscles"] = A[:, order[_NAMED:]]
-    _draw_series(ax, t, series)
+    draw_series(ax, t, series)
     ax.axhline(1.0, color="k", ls="--", lw=0.9, gid="activation_bound", label="1 = full activation (the bound)")
     ax.set_ylim(-0.03, 1.08)
     ax.set_ylabel("activation (0 relaxed, 1 full)")

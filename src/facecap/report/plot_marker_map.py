@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 from ..errors import InputError
 from ..io.atomic_write import atomic_path
 from ..validate import as_faces, as_points, as_vertices
-from .render_mesh import _as_size, draw_mesh
+from .render_mesh import as_size_px, draw_mesh
 
 __all__ = ["plot_marker_map", "MARKER_MAP_COLORS"]
 
@@ -87,7 +87,7 @@ def plot_marker_map(
     unknown = sorted(set(kinds) - set(MARKER_MAP_COLORS))
     if unknown:
         raise InputError(f"kinds: expected values in {sorted(MARKER_MAP_COLORS)}, got {unknown}")
-    w, h = _as_size(size_px)
+    w, h = as_size_px(size_px)
     toward = np.asarray(forward, dtype=np.float64).reshape(3)
     vertical = np.asarray(up, dtype=np.float64).reshape(3)
     if not np.linalg.norm(toward) > 0:

@@ -12,7 +12,7 @@ from matplotlib.ticker import MaxNLocator
 
 from ..errors import InputError
 from ..io.atomic_write import atomic_path
-from .render_mesh import _as_size
+from .render_mesh import as_size_px
 
 __all__ = ["plot_scan_selection"]
 
@@ -66,7 +66,7 @@ def plot_scan_selection(plan: Any, path: str | os.PathLike[str], *, title: str |
                          f"{error.size} and {worst.size} errors")
     if T == 0 or frames.min() < 0 or frames.max() >= T:
         raise InputError(f"plan: chosen frames {frames.tolist()} are not all within the take's {T} frames")
-    w, h = _as_size(size_px)
+    w, h = as_size_px(size_px)
 
     fig = Figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
     FigureCanvasAgg(fig)

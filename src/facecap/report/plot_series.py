@@ -13,7 +13,7 @@ from matplotlib.figure import Figure
 from ..errors import InputError
 from ..io.atomic_write import atomic_path
 
-__all__ = ["plot_series"]
+__all__ = ["plot_series", "draw_series"]
 
 _DPI = 100.0
 
@@ -53,8 +53,8 @@ def _nan_stats(A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return quantile(0.5), quantile(0.95), np.where(seen, S[rows, last], np.nan)
 
 
-def _draw_series(ax: Any, t: np.ndarray, curves: Mapping[str, np.ndarray],
-                 bands: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
+def draw_series(ax: Any, t: np.ndarray, curves: Mapping[str, np.ndarray],
+                bands: Mapping[str, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
     """Draw checked series on a matplotlib axes, as :func:`plot_series` draws them.
 
     Parameters
@@ -161,7 +161,7 @@ def plot_series(
     fig = Figure(figsize=(w / _DPI, h / _DPI), dpi=_DPI)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    _draw_series(ax, t, curves, extra)
+    draw_series(ax, t, curves, extra)
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     if log_y:

@@ -25,7 +25,7 @@ from ..errors import InputError
 from ..io.atomic_write import atomic_path
 from ..validate import as_faces, as_vertices
 
-__all__ = ["render_mesh", "render_side_by_side", "MeshPanel", "draw_mesh"]
+__all__ = ["render_mesh", "render_side_by_side", "MeshPanel", "draw_mesh", "as_size_px"]
 
 View = str | tuple[float, float]
 
@@ -172,7 +172,33 @@ def _draw(ax: Any, tri: np.ndarray, rgb: np.ndarray, bounds: Sequence[float], as
         ax.add_collection(pc)
 
 
-def _as_size(size_px: Any, *, name: str = "size_px") -> tuple[int, int]:
+def as_size_px(size_px: Any, *, name: str = "size_px") -> tuple[int, int]:
+    """A picture's size checked: ``(width, height)`` in whole pixels, each at least 16.
+
+    Every picture function of ``report`` takes its size this way.
+
+    Parameters
+    ----------
+    size_px : pair of int
+        ``(width, height)`` in pixels; any two numbers ``int`` accepts (they are truncated).
+    name : str, default 'size_px'
+        The argument's name in the error message.
+
+    Returns
+    -------
+    (int, int)
+        Width and height in pixels.
+
+    Raises
+    ------
+    InputError
+        If ``size_px`` is not two numbers, or either is below 16 pixels.
+
+    Examples
+    --------
+    >>> as_size_px((640.0, 480))
+    (640, 480)
+    """
     try:
         w, h = (int(s) for s in size_px)
     except (TypeError, ValueError):
@@ -295,7 +321,7 @@ def render_side_by_side(
     """
     if len(panels) == 0:
         raise InputError("panels: expected at least one (V, F, values, title) panel")
-    pw, ph = _as_size(panel_size_px, name="panel_size_px")
+    pw, ph = as_size_px(panel_size_px, name="panel_size_px")
     checked = []
     for k, p in enumerate(panels):
         p = MeshPanel(*p)
@@ -477,7 +503,7 @@ def render_mesh(
     >>> os.path.getsize(out) > 0
     True
     """
-    w, h = _as_size(size_px)
+    w, h = as_size_px(size_px)
     Vc = as_vertices(V, name="V")
     Fc = as_faces(F, Vc.shape[0], name="F")
     vals = _check_values(values, Vc.shape[0], name="values")

@@ -20,7 +20,8 @@ In the order a user meets them:
   :data:`CONSONANT_VISEMES` (``speech_curves.py``), speech-like visemes;
   :func:`real_motion_curves`, :func:`load_real_curve_fit`, :class:`RealCurveFit`,
   :data:`REAL_CURVE_NAMES` (``real_motion_curves.py``), weights fitted to the
-  bundled AnimFace take.
+  bundled AnimFace take. They ease with :func:`smoothstep` (``smoothstep.py``), the quintic
+  smoothstep, and blink with :func:`blink_curve` (``blink_curve.py``).
 - :func:`choose_marker_vertices`, :func:`animface_marker_map`,
   :func:`boundary_vertices` (``marker_layout.py``): where the virtual markers go.
 - :func:`scan_expression` (``scan_expression.py``): an expression "scanned" the
@@ -51,6 +52,7 @@ In the order a user meets them:
 
 from __future__ import annotations
 
+from .blink_curve import blink_curve
 from .expression_curves import EXPRESSION_PRESETS, smooth_expression_curves
 from .generate_performance import (
     CURVE_GENERATORS,
@@ -69,6 +71,7 @@ from .rest_expression import RESTING_SHAPES, as_rest_weights, random_rest_expres
 from .rotational_jaw import ICT_JAW_SCREW, JAW_MODES, JawScrew, fit_jaw_screw, rotational_jaw_correction
 from .scan_expression import ScannedExpression, scan_expression
 from .skin_albedo import BASE_SKIN_TONE, SkinRegions, skin_albedo
+from .smoothstep import smoothstep
 from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
 from .write_synthetic_case import CaseFiles, correspondence_json, write_planned_scans, write_synthetic_case
 from .wrinkle_scan import SubdividedScan, refine_near, subdivide_scan
@@ -99,6 +102,8 @@ __all__ = [
     "ICT_JAW_SCREW",
     "JAW_MODES",
     "smooth_expression_curves",
+    "smoothstep",
+    "blink_curve",
     "EXPRESSION_PRESETS",
     "speech_expression_curves",
     "VOWEL_VISEMES",

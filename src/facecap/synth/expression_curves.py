@@ -9,6 +9,8 @@ import numpy as np
 from ..errors import InputError
 from ..typing import FloatArray
 from ..validate import as_positive, as_positive_range
+from .blink_curve import blink_curve
+from .smoothstep import smoothstep
 
 __all__ = ["EXPRESSION_PRESETS", "smooth_expression_curves"]
 
@@ -32,23 +34,6 @@ EXPRESSION_PRESETS: dict[str, dict[str, float]] = {
     "lip_roll": {"mouthRollLower": 0.8, "mouthRollUpper": 0.8},
 }
 """Named expressions as blendshape weights; a performance eases in and out of these."""
-
-
-def _smoothstep(x: np.ndarray) -> np.ndarray:
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * x * (x * (6 * x - 15) + 10)  # C2 ease: zero velocity and acceleration at both ends
-
-
-def _blink_curve(rng: np.random.Generator, t: np.ndarray, duration: float, lead_in_s: float,
-                 blinks_per_second: float) -> np.ndarray:
-    """(T,) blink closure in [0, 1]: 0.2-0.3 s pulses, the first 0.3-1.5 s after the lead-in, gaps >= 0.4 s."""
-    blink_at = lead_in_s + rng.uniform(0.3, 1.5)
-    blink = np.zeros(t.size)
-    while blink_at < duration:
-        close = rng.uniform(0.06, 0.1)
-        blink = np.maximum(blink, _smoothstep((t - blink_at) / close) * (1.0 - _smoothstep((t - blink_at - close - 0.04) / (close * 1.5))))
-        blink_at += rng.exponential(1.0 / blinks_per_second) + 0.4
-    return blink
 
 
 def smooth_expression_curves(
@@ -164,21 +149,21 @@ def smooth_expression_curves(
     while start < duration:
         preset = EXPRESSION_PRESETS[presets[rng.integers(len(presets))]]
         ramp_in, hold, ramp_out = rng.uniform(*ramp_in_s), rng.uniform(0.2, 1.0), rng.uniform(*ramp_out_s)
-        envelope = _smoothstep((t - start) / ramp_in) * (1.0 - _smoothstep((t - start - ramp_in - hold) / ramp_out))
+        envelope = smoothstep((t - start) / ramp_in) * (1.0 - smoothstep((t - start - ramp_in - hold) / ramp_out))
         scale = rng.uniform(*intensity)
         side_gain, envelope_r = {"_L": 1.0, "_R": 1.0}, envelope
         if asymmetry > 0 or max_timing_offset_s > 0:
             u = rng_side.uniform(0.25, 1.0) * rng_side.choice((-1.0, 1.0))
             side_gain = {"_L": 1.0 + asymmetry * u, "_R": 1.0 - asymmetry * u}
             lag = rng_side.uniform(-max_timing_offset_s, max_timing_offset_s)
-            envelope_r = (_smoothstep((t - start - lag) / ramp_in)
-                          * (1.0 - _smoothstep((t - start - lag - ramp_in - hold) / ramp_out)))
+            envelope_r = (smoothstep((t - start - lag) / ramp_in)
+                          * (1.0 - smoothstep((t - start - lag - ramp_in - hold) / ramp_out)))
         for name, weight in preset.items():
             if name in index:
                 gain = side_gain.get(name[-2:], 1.0)
                 W[:, index[name]] += gain * scale * weight * (envelope_r if name.endswith("_R") else envelope)
         start += rng.exponential(1.0 / expressions_per_second) + 0.5 * ramp_in
-    blink = _blink_curve(rng, t, duration, lead_in_s, blinks_per_second)
+    blink = blink_curve(rng, t, duration, lead_in_s, blinks_per_second)
     for name in ("eyeBlink_L", "eyeBlink_R"):
         if name in index:
             W[:, index[name]] = np.maximum(W[:, index[name]], blink)

@@ -15,7 +15,8 @@ from ..mesh.vertex_normals import vertex_normals
 from ..structures import MarkerSequence, Mesh
 from ..typing import FloatArray, IntArray
 from ..validate import as_count, as_positive, as_rigid_transform
-from .expression_curves import _smoothstep, smooth_expression_curves
+from .expression_curves import smooth_expression_curves
+from .smoothstep import smoothstep
 from .ict_sample import IctSample, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, real_motion_curves
@@ -166,7 +167,7 @@ def _turn_motion(rng: np.random.Generator, n_frames: int, rate: float, n_signals
         sig = np.zeros((n_ref, n_signals))
         previous = np.zeros(n_signals)
         for start, duration, target in zip(starts, durations, targets):
-            step = _smoothstep((t - start) / duration)[:, None]
+            step = smoothstep((t - start) / duration)[:, None]
             sig += step * (target - previous)
             previous = target
         peak = float(np.linalg.norm(sig, axis=1).max())

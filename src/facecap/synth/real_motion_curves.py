@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import FileFormatError, InputError
 from ..typing import FloatArray
 from ..validate import as_positive, as_positive_range
-from .expression_curves import _smoothstep
+from .smoothstep import smoothstep
 
 __all__ = ["REAL_CURVE_NAMES", "RealCurveFit", "load_real_curve_fit", "real_motion_curves"]
 
@@ -224,7 +224,7 @@ def real_motion_curves(
         seen = filled[frames]
         if seen.any():
             start = t[frames[~seen][0]] if (~seen).any() else t[frames[-1]]
-            blend = _smoothstep((t[frames] - t[frames[0]]) / max(start - t[frames[0]], 1e-9))[:, None]
+            blend = smoothstep((t[frames] - t[frames[0]]) / max(start - t[frames[0]], 1e-9))[:, None]
             piece = np.where(seen[:, None], (1 - blend) * W[frames] + blend * piece, piece)
         W[frames] = piece
         filled[frames] = True
@@ -234,7 +234,7 @@ def real_motion_curves(
         gain[right] = 1 - asymmetry * u
         W *= gain
     if lead_in_s > 0:
-        W *= _smoothstep(t / lead_in_s)[:, None]
+        W *= smoothstep(t / lead_in_s)[:, None]
     np.clip(W, 0.0, 1.0, out=W)
     W[0] = 0.0
     return W

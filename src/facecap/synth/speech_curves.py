@@ -9,7 +9,8 @@ import numpy as np
 from ..errors import InputError
 from ..typing import FloatArray
 from ..validate import as_positive, as_positive_range
-from .expression_curves import _blink_curve, _smoothstep
+from .blink_curve import blink_curve
+from .smoothstep import smoothstep
 
 __all__ = ["CONSONANT_VISEMES", "VOWEL_VISEMES", "speech_expression_curves"]
 
@@ -41,7 +42,7 @@ def _keyframe_curve(t: FloatArray, key_times: FloatArray, key_values: FloatArray
     out = np.empty((t.size, key_values.shape[1]))
     seg = np.clip(np.searchsorted(key_times, t, side="right") - 1, 0, key_times.size - 2)
     span = key_times[seg + 1] - key_times[seg]
-    s = _smoothstep((t - key_times[seg]) / span)[:, None]
+    s = smoothstep((t - key_times[seg]) / span)[:, None]
     out[:] = key_values[seg] + s * (key_values[seg + 1] - key_values[seg])
     return out
 
@@ -174,9 +175,9 @@ def speech_expression_curves(
     brow = np.zeros(n_frames)
     for start in accents:
         ramp, hold, height = rng.uniform(0.08, 0.12), rng.uniform(0.15, 0.3), rng.uniform(0.3, 0.6)
-        brow = np.maximum(brow, height * _smoothstep((t - start) / ramp)
-                          * (1.0 - _smoothstep((t - start - ramp - hold) / (1.5 * ramp))))
-    blink = _blink_curve(rng, t, duration, lead_in_s, blinks_per_second)
+        brow = np.maximum(brow, height * smoothstep((t - start) / ramp)
+                          * (1.0 - smoothstep((t - start - ramp - hold) / (1.5 * ramp))))
+    blink = blink_curve(rng, t, duration, lead_in_s, blinks_per_second)
 
     W = np.zeros((n_frames, len(names)))
     for j, s in enumerate(names):

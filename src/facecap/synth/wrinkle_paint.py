@@ -7,8 +7,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import InputError
+from ..mesh.nearest_on_polyline import nearest_on_polyline
 from ..typing import FloatArray, IntArray
-from .wrinkles import WrinkleCurves, _nearest_on_polyline
+from .wrinkles import WrinkleCurves
 
 __all__ = ["PAINT_COLORS", "PAINT_HALF_WIDTH", "PaintedSkin", "paint_wrinkles"]
 
@@ -57,7 +58,7 @@ def _stripes(curves: WrinkleCurves, rest: FloatArray) -> tuple[IntArray, FloatAr
         reach = PAINT_HALF_WIDTH * curves.max_width[i]
         lo, hi = P.min(axis=0) - reach, P.max(axis=0) + reach
         box = np.flatnonzero(np.all((rest >= lo) & (rest <= hi), axis=1))
-        dist, _ = _nearest_on_polyline(rest[box], P, curves.arc_fraction[i])
+        dist, _ = nearest_on_polyline(rest[box], P, curves.arc_fraction[i])
         rel = dist / curves.max_width[i]
         take = (rel <= PAINT_HALF_WIDTH) & (rel < best[box])
         best[box[take]] = rel[take]

@@ -20,8 +20,10 @@ import numpy as np
 from ..errors import InputError
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
-from .expression_curves import EXPRESSION_PRESETS, _smoothstep
+from .expression_curves import EXPRESSION_PRESETS
+from .smoothstep import smoothstep
 from ..mesh.resample_polyline import resample_polyline
+from ..mesh.nearest_on_polyline import nearest_on_polyline
 from ..mesh.vertex_normals import vertex_normals
 from .ict_sample import IctSample
 
@@ -361,7 +363,7 @@ def wrinkle_expression_curves(n_frames: int, names: Sequence[str], *, rate: floa
     while True:
         for key in rng.permutation(keys):
             ramp_in, hold, ramp_out = rng.uniform(0.3, 0.6), rng.uniform(0.2, 0.6), rng.uniform(0.3, 0.6)
-            envelope = _smoothstep((t - at) / ramp_in) * (1.0 - _smoothstep((t - at - ramp_in - hold) / ramp_out))
+            envelope = smoothstep((t - at) / ramp_in) * (1.0 - smoothstep((t - at - ramp_in - hold) / ramp_out))
             scale = rng.uniform(*intensity)
             for shape, weight in WRINKLE_EXPRESSIONS[str(key)].items():
                 if shape in index:
@@ -402,20 +404,6 @@ def wrinkle_activation(curves: WrinkleCurves, weights: FloatArray) -> FloatArray
     return np.clip(W @ curves.gains.T, 0.0, 1.0)
 
 
-def _nearest_on_polyline(X: FloatArray, P: FloatArray, arc: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Distance from each point X (p, 3) to the polyline P (k, 3), and the arc fraction of its nearest point."""
-    A, B = P[:-1], P[1:]
-    AB = B - A
-    t = np.einsum("pkd,kd->pk", X[:, None, :] - A[None], AB) / np.einsum("kd,kd->k", AB, AB)
-    t = np.clip(t, 0.0, 1.0)
-    nearest = A[None] + t[..., None] * AB[None]
-    d2 = np.einsum("pkd,pkd->pk", X[:, None, :] - nearest, X[:, None, :] - nearest)
-    j = np.argmin(d2, axis=1)
-    rows = np.arange(X.shape[0])
-    s = arc[j] + t[rows, j] * (arc[j + 1] - arc[j])
-    return np.sqrt(d2[rows, j]), s
-
-
 def _influence(curves: WrinkleCurves, rest: FloatArray) -> list[tuple[IntArray, FloatArray, FloatArray]]:
     """Per curve: the vertices within its influence, their distance to the valley line and arc fraction."""
     out = []
@@ -424,7 +412,7 @@ def _influence(curves: WrinkleCurves, rest: FloatArray) -> list[tuple[IntArray, 
         reach = INFLUENCE_WIDTHS * curves.max_width[i]
         lo, hi = P.min(axis=0) - reach, P.max(axis=0) + reach
         box = np.flatnonzero(np.all((rest >= lo) & (rest <= hi), axis=1))
-        dist, s = _nearest_on_polyline(rest[box], P, curves.arc_fraction[i])
+        dist, s = nearest_on_polyline(rest[box], P, curves.arc_fraction[i])
         keep = dist < reach
         out.append((box[keep], dist[keep], s[keep]))
     return out

@@ -19,8 +19,9 @@
   discrete shell of eq. 8 and its damped Gauss-Newton minimiser.
 - :class:`SurfaceWrinkle`, :func:`wrinkles_on_surface`, :func:`merge_camera_wrinkles`,
   :func:`anchor_curves`, :func:`identity_parts`, :func:`names_wrinkle` (``surface_wrinkles.py``): valley splines cast onto the animated face, the cameras merged (5.3).
-- :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`
-  (``synthesize_wrinkles.py``): valleys imposed and bulges by the shell, region by region (5.3).
+- :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`,
+  :func:`wrinkle_depth_scale` (``synthesize_wrinkles.py``): valleys imposed and bulges by the
+  shell, region by region (5.3); the depth factor its ``depth_scale`` gives each wrinkle.
 - :class:`WrinkleFrameStage`, :func:`large_scale_in_mocap`, :func:`first_frame_anchors`,
   :func:`check_cameras_see_the_face`, :func:`check_paint_on_face` (``wrinkle_frame_stage.py``): one video
   frame of the layer, and the checks before a run; the whole take (``facecap wrinkles``) is
@@ -72,7 +73,7 @@ from .surface_wrinkles import (
     names_wrinkle,
     wrinkles_on_surface,
 )
-from .synthesize_wrinkles import WrinkleSynthesis, smoothed_normals, synthesize_wrinkles
+from .synthesize_wrinkles import WrinkleSynthesis, smoothed_normals, synthesize_wrinkles, wrinkle_depth_scale
 from .wrinkle_frame_stage import (
     WrinkleFrameStage,
     check_cameras_see_the_face,
@@ -119,6 +120,7 @@ __all__ = [
     "synthesize_wrinkles",
     "WrinkleSynthesis",
     "smoothed_normals",
+    "wrinkle_depth_scale",
     "WrinkleFrameStage",
     "large_scale_in_mocap",
     "remove_wrinkles",

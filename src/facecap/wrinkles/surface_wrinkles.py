@@ -15,6 +15,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..mesh.nearest_on_polyline import nearest_on_polyline
 from ..typing import FloatArray
 
 __all__ = ["SurfaceWrinkle", "wrinkles_on_surface", "anchor_curves", "merge_camera_wrinkles", "identity_parts",
@@ -189,27 +190,12 @@ def anchor_curves(curves_px: Sequence[Any], camera: Any, caster: Any, *, min_poi
     return out
 
 
-def _nearest_on_polyline(points: FloatArray, line: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Distance from each point to the polyline, and the arc length of its foot point."""
-    a, b = line[:-1], line[1:]
-    ab = b - a
-    seg = np.linalg.norm(ab, axis=1)
-    start = np.concatenate([[0.0], np.cumsum(seg)])[:-1]
-    rel = points[:, None, :] - a[None]
-    t = np.clip(np.einsum("psc,sc->ps", rel, ab) / np.maximum(seg * seg, 1e-300)[None], 0.0, 1.0)
-    foot = a[None] + t[..., None] * ab[None]
-    dist = np.linalg.norm(points[:, None, :] - foot, axis=2)
-    j = np.argmin(dist, axis=1)
-    rows = np.arange(len(points))
-    return dist[rows, j], start[j] + t[rows, j] * seg[j]
-
-
 def _blend_pair(base: SurfaceWrinkle, other: SurfaceWrinkle, snap_mm: float) -> SurfaceWrinkle:
     """``other`` snapped onto ``base``: blended where they overlap, its overhangs appended at the ends."""
-    dist, foot = _nearest_on_polyline(other.points, base.points)
+    dist, foot = nearest_on_polyline(other.points, base.points)
     arc_b = base.arc_length
     # where base's points lie on the other's line: blend them there with the other's values
-    dist_b, foot_b = _nearest_on_polyline(base.points, other.points)
+    dist_b, foot_b = nearest_on_polyline(base.points, other.points)
     arc_o = other.arc_length
     # base points beside the other line, not past its ends (there the nearest point is its end, which would
     # pull them back along the line)
@@ -274,8 +260,8 @@ def merge_camera_wrinkles(views: Sequence[Sequence[SurfaceWrinkle]], *, snap_mm:
             for j, have in enumerate(merged):
                 if have.color != curve.color or _cameras_of(curve.wrinkle) & _cameras_of(have.wrinkle):
                     continue
-                d_new, _ = _nearest_on_polyline(curve.points, have.points)
-                d_have, _ = _nearest_on_polyline(have.points, curve.points)
+                d_new, _ = nearest_on_polyline(curve.points, have.points)
+                d_have, _ = nearest_on_polyline(have.points, curve.points)
                 share = max(float(np.mean(d_new < snap_mm)), float(np.mean(d_have < snap_mm)))
                 if share > best_share:
                     best, best_share = j, share

@@ -38,15 +38,16 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
+from ..mesh.nearest_on_polyline import nearest_on_polyline
 from ..mesh.vertex_normals import face_normals
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_faces, as_vertices
 from .cross_section import cross_section
 from .discrete_shell import AREA, BEND, STRETCH, DiscreteShell, minimize_shell
 from .fit_cross_sections import DEFAULT_ROUNDING
-from .surface_wrinkles import SurfaceWrinkle, _nearest_on_polyline, identity_parts
+from .surface_wrinkles import SurfaceWrinkle, identity_parts
 
-__all__ = ["WrinkleSynthesis", "synthesize_wrinkles", "smoothed_normals"]
+__all__ = ["WrinkleSynthesis", "synthesize_wrinkles", "smoothed_normals", "wrinkle_depth_scale"]
 
 INFLUENCE_WIDTHS = 2.0
 """The shell moves the skin up to this many half-widths from a valley line (the paper's "maximum influence
@@ -119,11 +120,28 @@ def smoothed_normals(V: Any, F: Any, *, iterations: int = 3, vertices: Any = Non
     return np.divide(N, length, out=np.zeros_like(N), where=length > 0)
 
 
-def _scale_for(wrinkle: SurfaceWrinkle, depth_scale: Any) -> float:
-    """The depth factor for a wrinkle: a number for all, or a mapping by identity (missing: 1).
+def wrinkle_depth_scale(wrinkle: SurfaceWrinkle, depth_scale: float | Mapping[str, float]) -> float:
+    """The factor on a wrinkle's depth that :func:`synthesize_wrinkles`'s ``depth_scale`` gives it.
 
-    A mapping names the wrinkle by its full (merged) identity or by any camera's part of it; the
-    full name wins, and parts' factors multiply.
+    Parameters
+    ----------
+    wrinkle : SurfaceWrinkle
+        The wrinkle; only its identity (``wrinkle.wrinkle``) is read.
+    depth_scale : float or mapping of str to float
+        One factor for every wrinkle, or factors by identity: a mapping names the wrinkle by its
+        full (merged) identity or by any camera's part of it (:func:`identity_parts`); the full
+        name wins, the parts' factors multiply, and a wrinkle it does not name keeps 1.
+
+    Returns
+    -------
+    float
+        The factor (dimensionless).
+
+    Examples
+    --------
+    >>> w = SurfaceWrinkle("cam_left:2+cam_right:1", 0, np.zeros((2, 3)), *3 * [np.ones(2)])
+    >>> wrinkle_depth_scale(w, {"cam_left:2": 0.5, "cam_right:1": 3.0, "cam_left:7": 9.0})
+    1.5
     """
     if not isinstance(depth_scale, Mapping):
         return float(depth_scale)
@@ -192,7 +210,7 @@ def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[Surface
     influence = np.zeros(n, dtype=bool)
     tree = cKDTree(V)
     for wrinkle in wrinkles:
-        scale = _scale_for(wrinkle, depth_scale)
+        scale = wrinkle_depth_scale(wrinkle, depth_scale)
         depth = np.clip(wrinkle.depth * scale, 0.0, None)
         if len(wrinkle.points) < 2 or not (depth > 0).any():
             continue
@@ -202,7 +220,7 @@ def synthesize_wrinkles(large_scale: Any, faces: Any, wrinkles: Sequence[Surface
         near = np.unique(np.concatenate([np.asarray(x, dtype=np.int64) for x in lists]))
         if near.size == 0:
             continue
-        dist, foot = _nearest_on_polyline(V[near], wrinkle.points)
+        dist, foot = nearest_on_polyline(V[near], wrinkle.points)
         arc = wrinkle.arc_length
         w = np.interp(foot, arc, wrinkle.width)
         d = np.interp(foot, arc, depth)

@@ -217,7 +217,7 @@ class WrinkleFrameStage:
     def frame(self, video_frame: int) -> tuple[dict[str, np.ndarray], list[Any]]:
         """One video frame: the wrinkle displacement and the merged valley lines."""
         from .surface_wrinkles import identity_parts, merge_camera_wrinkles
-        from .synthesize_wrinkles import _scale_for, synthesize_wrinkles
+        from .synthesize_wrinkles import synthesize_wrinkles, wrinkle_depth_scale
 
         clock = time.perf_counter()
         faces = self._result()[0].mesh.faces
@@ -232,7 +232,7 @@ class WrinkleFrameStage:
             merged += self.edits.surface_wrinkles(at, self.cameras, caster, A, faces)
             edited = self.edits.scales([w.wrinkle for w in merged], at)
             base = options.get("depth_scale", 1.0)
-            options["depth_scale"] = {w.wrinkle: edited[w.wrinkle] * _scale_for(w, base) for w in merged}
+            options["depth_scale"] = {w.wrinkle: edited[w.wrinkle] * wrinkle_depth_scale(w, base) for w in merged}
         synthesis = synthesize_wrinkles(A, faces, merged, **options)
         seconds["synthesis_s"] = time.perf_counter() - clock
         self.last_seconds = seconds  # for benchmarks; never part of the chunk (its bytes must not vary)
