@@ -993,7 +993,7 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import run_demo
+    from .pipelines.run_demo import run_demo
 
     summary = run_demo(args.out, n_frames=args.frames, progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:

@@ -39,7 +39,9 @@ calls the solver packages (arrays in, arrays out), and writes the result through
 - :func:`view_result` (``view_result.py``): ``facecap view``, the review page of a result (its
   glTF made if missing, the error heat map against a truth) and its report.
 
-Not here yet (issue 29): the demo's job (``facecap/demo.py``).
+- :func:`run_demo` (``run_demo.py``): ``facecap demo``, the jobs above on the bundled sample (a
+  generated take with its ground truth, the real AnimFace take, generated wrinkle footage), with
+  pictures and ``demo_summary.json``.
 
 The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
 function; reach a module itself with ``importlib.import_module``.
@@ -75,6 +77,7 @@ _PUBLIC = {
     "export_result": ("export_result", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES", "MAX_ERROR_PASS_FLOPS"),
     "write_gltf_review": ("write_gltf_review",),
     "view_result": ("view_result", "ERROR_ROWS"),
+    "run_demo": ("run_demo",),
 }
 """Each job module's public names, by module."""
 
