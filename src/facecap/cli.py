@@ -760,49 +760,13 @@ def _add_remove_wrinkles(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_remove_wrinkles)
 
 
-def _region_mask(path: str, n_vertices: int) -> Any:
-    """A (n_vertices,) bool vertex mask from a JSON list of indices or a .npy boolean array."""
-    from pathlib import Path
-
-    import numpy as np
-
-    source = Path(path)
-    if source.suffix.lower() == ".npy":
-        try:
-            mask = np.load(source, allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise FacecapError(f"{path}: not a NumPy array file ({exc})") from None
-        if mask.dtype != bool or mask.shape != (n_vertices,):
-            raise FacecapError(f"{path}: expected a bool array of the scan's {n_vertices} vertices, "
-                               f"got {mask.dtype} {mask.shape}")
-        return mask
-    try:
-        content = json.loads(source.read_text())
-    except json.JSONDecodeError:
-        raise FacecapError(f"{path}: expected a JSON list of vertex indices") from None
-    if not isinstance(content, list) or not all(isinstance(i, int) and not isinstance(i, bool) for i in content):
-        raise FacecapError(f"{path}: expected a JSON list of vertex indices (integers)")
-    indices = np.asarray(content, dtype=np.int64)
-    if indices.ndim != 1 or indices.size == 0 or indices.min() < 0 or indices.max() >= n_vertices:
-        raise FacecapError(f"{path}: expected vertex indices in 0..{n_vertices - 1}")
-    mask = np.zeros(n_vertices, dtype=bool)
-    mask[indices] = True
-    return mask
-
-
 def _cmd_remove_wrinkles(args: argparse.Namespace) -> int:
-    from .io.read_mesh import read_mesh
-    from .io.write_mesh import write_mesh
-    from .io.atomic_write import check_file_destination
-    from .wrinkles import remove_wrinkles
+    from .pipelines.remove_scan_wrinkles import remove_scan_wrinkles
 
-    check_file_destination(args.out, overwrite=args.overwrite)
-    scan = read_mesh(args.scan, unit=args.scan_units)
-    mask = _region_mask(args.region, scan.n_vertices)
-    smooth = remove_wrinkles(scan, mask)
-    write_mesh(smooth, args.out)
+    region = remove_scan_wrinkles(args.scan, args.region, args.out, scan_unit=args.scan_units,
+                                  overwrite=args.overwrite)
     if not args.quiet:
-        print(f"wrote {args.out}: {int(mask.sum())} of {scan.n_vertices} vertices smoothed")
+        print(f"wrote {args.out}: {int(region.sum())} of {region.size} vertices smoothed")
     return 0
 
 
@@ -820,19 +784,10 @@ def _add_build_anatomy(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_build_anatomy(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from .pipelines.build_anatomy_model import build_anatomy_model
 
-    from .anatomy import build_anatomy, render_anatomy_layout
-    from .io.atomic_write import atomic_folder, check_folder_destination
-    from .io.read_mesh import read_mesh
-
-    check_folder_destination(args.out, marker_file="anatomy.json", overwrite=args.overwrite)  # before the build
-    scan = read_mesh(args.scan, unit=args.scan_units)
-    anatomy = build_anatomy(scan, landmarks=args.landmarks, n_tets=args.tets, progress=not args.quiet)
-    # the model and its picture appear together or not at all
-    with atomic_folder(args.out, marker_file="anatomy.json", overwrite=args.overwrite) as stage:
-        render_anatomy_layout(anatomy, Path(stage) / "layout.png")
-        anatomy.save(stage)
+    anatomy = build_anatomy_model(args.scan, args.out, scan_unit=args.scan_units, landmarks=args.landmarks,
+                                  n_tets=args.tets, progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {args.out}: {len(anatomy.tets)} tetrahedra, {len(anatomy.muscle_names)} muscles")
     return 0

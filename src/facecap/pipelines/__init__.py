@@ -39,6 +39,10 @@ calls the solver packages (arrays in, arrays out), and writes the result through
 - :func:`view_result` (``view_result.py``): ``facecap view``, the review page of a result (its
   glTF made if missing, the error heat map against a truth) and its report.
 
+- :func:`build_anatomy_model` (``build_anatomy_model.py``): ``facecap build-anatomy``, the anatomy
+  model folder of a neutral scan (Sifakis et al. 2005, sec. 3) with its layout picture.
+- :func:`remove_scan_wrinkles` (``remove_scan_wrinkles.py``): ``facecap remove-wrinkles``, a neutral
+  scan's wrinkles smoothed out in a region (Bickel et al. 2007, sec. 5.4), written as a new scan.
 - :func:`run_demo` (``run_demo.py``): ``facecap demo``, the jobs above on the bundled sample (a
   generated take with its ground truth, the real AnimFace take, generated wrinkle footage), with
   pictures and ``demo_summary.json``.
@@ -78,6 +82,8 @@ _PUBLIC = {
     "write_gltf_review": ("write_gltf_review",),
     "view_result": ("view_result", "ERROR_ROWS"),
     "run_demo": ("run_demo",),
+    "build_anatomy_model": ("build_anatomy_model",),
+    "remove_scan_wrinkles": ("remove_scan_wrinkles",),
 }
 """Each job module's public names, by module."""
 
