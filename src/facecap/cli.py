@@ -693,29 +693,8 @@ def _add_wrinkles(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_wrinkles)
 
 
-def _camera_setup(paths: Sequence[str], videos: Sequence[str], unit: str) -> tuple[list, float | None, float]:
-    """Cameras in --video order, and the rate and offset the camera file gives (None, 0 for YAML files)."""
-    from pathlib import Path
-
-    from .cameras import read_camera_file, read_opencv_calibration
-
-    if len(paths) == 1 and Path(paths[0]).suffix.lower() == ".json":
-        setup = read_camera_file(paths[0])
-        stems = [Path(v).stem if Path(v).suffix else Path(v).name for v in videos]
-        if all(stem in setup.names for stem in stems):
-            cameras = [setup.camera(stem) for stem in stems]
-        elif len(setup.cameras) == len(videos):
-            cameras = list(setup.cameras)
-        else:
-            raise FacecapError(f"{paths[0]}: {len(setup.cameras)} cameras ({', '.join(setup.names)}) for "
-                               f"{len(videos)} footage; name each footage after its camera or give one per camera")
-        return cameras, setup.video_rate_hz, setup.first_mocap_frame
-    if len(paths) != len(videos):
-        raise FacecapError(f"--cameras: {len(paths)} calibration files for {len(videos)} footage (one per camera)")
-    return [read_opencv_calibration(p, unit=unit) for p in paths], None, 0.0
-
-
 def _cmd_wrinkles(args: argparse.Namespace) -> int:
+    from .cameras import read_footage_cameras
     from .io.result_layout import parse_export_formats
     from .pipelines import capture_wrinkles
 
@@ -728,7 +707,7 @@ def _cmd_wrinkles(args: argparse.Namespace) -> int:
         from .wrinkles import read_wrinkle_edits
 
         edits = read_wrinkle_edits(args.edits)  # before any long work
-    cameras, rate, first = _camera_setup(args.cameras, args.video, args.camera_units)
+    cameras, rate, first = read_footage_cameras(args.cameras, args.video, unit=args.camera_units)
     rate = args.video_rate if args.video_rate is not None else rate
     if rate is None:
         raise FacecapError("--video-rate: the calibration files give no footage rate; give it in Hz")
