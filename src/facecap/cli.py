@@ -548,7 +548,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
 def _cmd_blend(args: argparse.Namespace) -> int:
     from .pipelines.blend_take import blend_take
 
-    report = blend_take(args.bases, args.markers, args.out, **_blend_options(args), progress=not args.quiet,
+    report = blend_take(args.bases, args.markers, args.out, **_output_options(args), progress=not args.quiet,
                         overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {args.out}: {report['n_frames']} frames from {report['n_bases']} bases, "
@@ -556,39 +556,19 @@ def _cmd_blend(args: argparse.Namespace) -> int:
     return 0
 
 
-def _blend_options(args: argparse.Namespace) -> dict:
-    return _output_options(args)
-
-
 def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .pipelines import blend_take, conditioned_take_path, plan_scans, register_planned_scans
-    from .io.atomic_write import check_file_destination, check_folder_destination, ensure_folder
-    from .io.registered_scans import BASES_MARKER_FILE
-    from .io.write_performance import check_result_destination
+    from .pipelines.run_scan_workflow import run_scan_workflow
 
-    out = Path(args.out)
-    plan_path = Path(args.plan) if args.plan else out / "plan.json"
-    # everything the three steps would replace, refused before the first one starts
-    if not args.plan and out.is_dir():
-        for path in (plan_path, conditioned_take_path(plan_path), out / "plan.png"):
-            check_file_destination(path, overwrite=args.overwrite)
-    check_folder_destination(out / "bases", marker_file=BASES_MARKER_FILE, overwrite=args.overwrite)
-    check_result_destination(out / "animation", overwrite=args.overwrite)
-    ensure_folder(out)
-    if not args.plan:
-        plan_scans(args.markers, plan_path, tolerance=args.tolerance, plot_path=out / "plan.png",
-                   progress=not args.quiet, overwrite=args.overwrite)
-    register_planned_scans(plan_path, args.markers, args.scans, out / "bases", template_path=args.template,
-                           scan_unit=args.scan_units, template_unit=args.template_units,
-                           marker_offset_mm=args.marker_offset, refine=args.refine,
-                           template_texture_path=args.template_texture,
-                           align_colors=args.color_alignment, progress=not args.quiet, overwrite=args.overwrite)
-    report = blend_take(out / "bases", args.markers, out / "animation", **_blend_options(args), progress=not args.quiet,
-                        overwrite=args.overwrite)
+    report = run_scan_workflow(args.markers, args.scans, args.out, plan_path=args.plan, tolerance=args.tolerance,
+                               scan_unit=args.scan_units, template_path=args.template,
+                               template_unit=args.template_units, marker_offset_mm=args.marker_offset,
+                               template_texture_path=args.template_texture, align_colors=args.color_alignment,
+                               refine=args.refine, **_output_options(args), progress=not args.quiet,
+                               overwrite=args.overwrite)
     if not args.quiet:
-        print(f"wrote {out}: plan.json, bases/, animation/ ({report['n_frames']} frames)")
+        print(f"wrote {Path(args.out)}: plan.json, bases/, animation/ ({report['n_frames']} frames)")
     return 0
 
 
@@ -614,9 +594,7 @@ def _add_synth(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
-    from .io.atomic_write import atomic_folder
-    from .synth.generate_performance import generate_performance, random_identity
-    from .synth.ict_sample import load_ict_sample
+    from .pipelines.generate_capture_case import generate_capture_case
 
     if args.frames < 2:
         raise FacecapError(f"--frames: expected at least 2, got {args.frames}")
@@ -626,27 +604,18 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         raise FacecapError("--levels: only with --footage (the case without footage is on the ICT face itself)")
     if args.render_edge is not None and not args.footage:
         raise FacecapError("--render-edge: only with --footage (it is how the footage is rendered)")
-    if args.render_edge:
-        from .synth.write_footage_case import MIN_RENDER_EDGE_MM
+    edge = None
+    if args.footage:  # the renderer's module, only for footage
+        from .synth.write_footage_case import MIN_RENDER_EDGE_MM, RENDER_EDGE_MM
 
-        if not MIN_RENDER_EDGE_MM <= args.render_edge < float("inf"):
-            raise FacecapError(f"--render-edge: expected 0 (off) or a finite length of at least {MIN_RENDER_EDGE_MM:g} "
-                               f"mm, got {args.render_edge:g}")
-    identity = random_identity(args.identity) if args.identity else None
-    with atomic_folder(args.out, marker_file="truth.npz", overwrite=args.overwrite) as stage:
-        if args.footage:
-            from .synth.write_footage_case import RENDER_EDGE_MM, write_footage_case
-
-            # 0 renders the scan itself; write_footage_case refuses a length it cannot render, naming it
-            edge = RENDER_EDGE_MM if args.render_edge is None else (None if args.render_edge == 0 else args.render_edge)
-            write_footage_case(stage, n_frames=args.frames, seed=args.seed, identity=identity, levels=args.levels,
-                               render_edge_mm=edge, progress=not args.quiet)
-        else:
-            from .synth.write_synthetic_case import write_synthetic_case
-
-            sample = load_ict_sample()
-            case = generate_performance(n_frames=args.frames, seed=args.seed, identity=identity, sample=sample)
-            write_synthetic_case(case, stage, region_labels=sample.region_labels, region_names=list(sample.region_names))
+        if args.render_edge and not MIN_RENDER_EDGE_MM <= args.render_edge < float("inf"):
+            raise FacecapError(f"--render-edge: expected 0 (off) or a finite length of at least "
+                               f"{MIN_RENDER_EDGE_MM:g} mm, got {args.render_edge:g}")
+        # 0 renders the scan itself; write_footage_case refuses a length it cannot render, naming it
+        edge = RENDER_EDGE_MM if args.render_edge is None else (None if args.render_edge == 0 else args.render_edge)
+    generate_capture_case(args.out, n_frames=args.frames, seed=args.seed, identity_seed=args.identity,
+                          footage=args.footage, levels=args.levels, render_edge_mm=edge, progress=not args.quiet,
+                          overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {args.out}: {args.frames} frames" + (", wrinkle footage from two cameras" if args.footage else ""))
     return 0
