@@ -46,9 +46,7 @@ def _compare(folder: Path) -> dict[str, Any]:
 
 
 def main() -> None:
-    from facecap.pipelines import write_blended_performance
-    from facecap.demo import run_demo
-    from facecap.pipelines import animate_scan
+    from facecap.pipelines import animate_scan, run_demo, write_blended_performance
 
     work = Path(tempfile.mkdtemp(prefix="rig_exactness_"))
     out: dict[str, Any] = {}

@@ -1,7 +1,7 @@
 """Every path a written folder records is final: no staging name, and the file is there.
 
 Importable as ``recorded_paths`` (``tests/`` is on the path), for the tests of every job that
-writes a folder (``tests/test_cli.py``, ``tests/test_demo.py``).
+writes a folder (``tests/test_cli.py``, ``tests/pipelines/test_run_demo.py``).
 """
 
 from __future__ import annotations

@@ -548,7 +548,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
 def _cmd_blend(args: argparse.Namespace) -> int:
     from .pipelines.blend_take import blend_take
 
-    report = blend_take(args.bases, args.markers, args.out, **_blend_options(args), progress=not args.quiet,
+    report = blend_take(args.bases, args.markers, args.out, **_output_options(args), progress=not args.quiet,
                         overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {args.out}: {report['n_frames']} frames from {report['n_bases']} bases, "
@@ -556,39 +556,19 @@ def _cmd_blend(args: argparse.Namespace) -> int:
     return 0
 
 
-def _blend_options(args: argparse.Namespace) -> dict:
-    return _output_options(args)
-
-
 def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from .pipelines import blend_take, conditioned_take_path, plan_scans, register_planned_scans
-    from .io.atomic_write import check_file_destination, check_folder_destination, ensure_folder
-    from .io.registered_scans import BASES_MARKER_FILE
-    from .io.write_performance import check_result_destination
+    from .pipelines.run_scan_workflow import run_scan_workflow
 
-    out = Path(args.out)
-    plan_path = Path(args.plan) if args.plan else out / "plan.json"
-    # everything the three steps would replace, refused before the first one starts
-    if not args.plan and out.is_dir():
-        for path in (plan_path, conditioned_take_path(plan_path), out / "plan.png"):
-            check_file_destination(path, overwrite=args.overwrite)
-    check_folder_destination(out / "bases", marker_file=BASES_MARKER_FILE, overwrite=args.overwrite)
-    check_result_destination(out / "animation", overwrite=args.overwrite)
-    ensure_folder(out)
-    if not args.plan:
-        plan_scans(args.markers, plan_path, tolerance=args.tolerance, plot_path=out / "plan.png",
-                   progress=not args.quiet, overwrite=args.overwrite)
-    register_planned_scans(plan_path, args.markers, args.scans, out / "bases", template_path=args.template,
-                           scan_unit=args.scan_units, template_unit=args.template_units,
-                           marker_offset_mm=args.marker_offset, refine=args.refine,
-                           template_texture_path=args.template_texture,
-                           align_colors=args.color_alignment, progress=not args.quiet, overwrite=args.overwrite)
-    report = blend_take(out / "bases", args.markers, out / "animation", **_blend_options(args), progress=not args.quiet,
-                        overwrite=args.overwrite)
+    report = run_scan_workflow(args.markers, args.scans, args.out, plan_path=args.plan, tolerance=args.tolerance,
+                               scan_unit=args.scan_units, template_path=args.template,
+                               template_unit=args.template_units, marker_offset_mm=args.marker_offset,
+                               template_texture_path=args.template_texture, align_colors=args.color_alignment,
+                               refine=args.refine, **_output_options(args), progress=not args.quiet,
+                               overwrite=args.overwrite)
     if not args.quiet:
-        print(f"wrote {out}: plan.json, bases/, animation/ ({report['n_frames']} frames)")
+        print(f"wrote {Path(args.out)}: plan.json, bases/, animation/ ({report['n_frames']} frames)")
     return 0
 
 
@@ -614,9 +594,7 @@ def _add_synth(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_synth(args: argparse.Namespace) -> int:
-    from .io.atomic_write import atomic_folder
-    from .synth.generate_performance import generate_performance, random_identity
-    from .synth.ict_sample import load_ict_sample
+    from .pipelines.generate_capture_case import generate_capture_case
 
     if args.frames < 2:
         raise FacecapError(f"--frames: expected at least 2, got {args.frames}")
@@ -626,27 +604,18 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         raise FacecapError("--levels: only with --footage (the case without footage is on the ICT face itself)")
     if args.render_edge is not None and not args.footage:
         raise FacecapError("--render-edge: only with --footage (it is how the footage is rendered)")
-    if args.render_edge:
-        from .synth.write_footage_case import MIN_RENDER_EDGE_MM
+    edge = None
+    if args.footage:  # the renderer's module, only for footage
+        from .synth.write_footage_case import MIN_RENDER_EDGE_MM, RENDER_EDGE_MM
 
-        if not MIN_RENDER_EDGE_MM <= args.render_edge < float("inf"):
-            raise FacecapError(f"--render-edge: expected 0 (off) or a finite length of at least {MIN_RENDER_EDGE_MM:g} "
-                               f"mm, got {args.render_edge:g}")
-    identity = random_identity(args.identity) if args.identity else None
-    with atomic_folder(args.out, marker_file="truth.npz", overwrite=args.overwrite) as stage:
-        if args.footage:
-            from .synth.write_footage_case import RENDER_EDGE_MM, write_footage_case
-
-            # 0 renders the scan itself; write_footage_case refuses a length it cannot render, naming it
-            edge = RENDER_EDGE_MM if args.render_edge is None else (None if args.render_edge == 0 else args.render_edge)
-            write_footage_case(stage, n_frames=args.frames, seed=args.seed, identity=identity, levels=args.levels,
-                               render_edge_mm=edge, progress=not args.quiet)
-        else:
-            from .synth.write_synthetic_case import write_synthetic_case
-
-            sample = load_ict_sample()
-            case = generate_performance(n_frames=args.frames, seed=args.seed, identity=identity, sample=sample)
-            write_synthetic_case(case, stage, region_labels=sample.region_labels, region_names=list(sample.region_names))
+        if args.render_edge and not MIN_RENDER_EDGE_MM <= args.render_edge < float("inf"):
+            raise FacecapError(f"--render-edge: expected 0 (off) or a finite length of at least "
+                               f"{MIN_RENDER_EDGE_MM:g} mm, got {args.render_edge:g}")
+        # 0 renders the scan itself; write_footage_case refuses a length it cannot render, naming it
+        edge = RENDER_EDGE_MM if args.render_edge is None else (None if args.render_edge == 0 else args.render_edge)
+    generate_capture_case(args.out, n_frames=args.frames, seed=args.seed, identity_seed=args.identity,
+                          footage=args.footage, levels=args.levels, render_edge_mm=edge, progress=not args.quiet,
+                          overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {args.out}: {args.frames} frames" + (", wrinkle footage from two cameras" if args.footage else ""))
     return 0
@@ -693,29 +662,8 @@ def _add_wrinkles(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_wrinkles)
 
 
-def _camera_setup(paths: Sequence[str], videos: Sequence[str], unit: str) -> tuple[list, float | None, float]:
-    """Cameras in --video order, and the rate and offset the camera file gives (None, 0 for YAML files)."""
-    from pathlib import Path
-
-    from .cameras import read_camera_file, read_opencv_calibration
-
-    if len(paths) == 1 and Path(paths[0]).suffix.lower() == ".json":
-        setup = read_camera_file(paths[0])
-        stems = [Path(v).stem if Path(v).suffix else Path(v).name for v in videos]
-        if all(stem in setup.names for stem in stems):
-            cameras = [setup.camera(stem) for stem in stems]
-        elif len(setup.cameras) == len(videos):
-            cameras = list(setup.cameras)
-        else:
-            raise FacecapError(f"{paths[0]}: {len(setup.cameras)} cameras ({', '.join(setup.names)}) for "
-                               f"{len(videos)} footage; name each footage after its camera or give one per camera")
-        return cameras, setup.video_rate_hz, setup.first_mocap_frame
-    if len(paths) != len(videos):
-        raise FacecapError(f"--cameras: {len(paths)} calibration files for {len(videos)} footage (one per camera)")
-    return [read_opencv_calibration(p, unit=unit) for p in paths], None, 0.0
-
-
 def _cmd_wrinkles(args: argparse.Namespace) -> int:
+    from .cameras import read_footage_cameras
     from .io.result_layout import parse_export_formats
     from .pipelines import capture_wrinkles
 
@@ -728,7 +676,7 @@ def _cmd_wrinkles(args: argparse.Namespace) -> int:
         from .wrinkles import read_wrinkle_edits
 
         edits = read_wrinkle_edits(args.edits)  # before any long work
-    cameras, rate, first = _camera_setup(args.cameras, args.video, args.camera_units)
+    cameras, rate, first = read_footage_cameras(args.cameras, args.video, unit=args.camera_units)
     rate = args.video_rate if args.video_rate is not None else rate
     if rate is None:
         raise FacecapError("--video-rate: the calibration files give no footage rate; give it in Hz")
@@ -760,49 +708,13 @@ def _add_remove_wrinkles(sub: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_remove_wrinkles)
 
 
-def _region_mask(path: str, n_vertices: int) -> Any:
-    """A (n_vertices,) bool vertex mask from a JSON list of indices or a .npy boolean array."""
-    from pathlib import Path
-
-    import numpy as np
-
-    source = Path(path)
-    if source.suffix.lower() == ".npy":
-        try:
-            mask = np.load(source, allow_pickle=False)
-        except (ValueError, OSError) as exc:
-            raise FacecapError(f"{path}: not a NumPy array file ({exc})") from None
-        if mask.dtype != bool or mask.shape != (n_vertices,):
-            raise FacecapError(f"{path}: expected a bool array of the scan's {n_vertices} vertices, "
-                               f"got {mask.dtype} {mask.shape}")
-        return mask
-    try:
-        content = json.loads(source.read_text())
-    except json.JSONDecodeError:
-        raise FacecapError(f"{path}: expected a JSON list of vertex indices") from None
-    if not isinstance(content, list) or not all(isinstance(i, int) and not isinstance(i, bool) for i in content):
-        raise FacecapError(f"{path}: expected a JSON list of vertex indices (integers)")
-    indices = np.asarray(content, dtype=np.int64)
-    if indices.ndim != 1 or indices.size == 0 or indices.min() < 0 or indices.max() >= n_vertices:
-        raise FacecapError(f"{path}: expected vertex indices in 0..{n_vertices - 1}")
-    mask = np.zeros(n_vertices, dtype=bool)
-    mask[indices] = True
-    return mask
-
-
 def _cmd_remove_wrinkles(args: argparse.Namespace) -> int:
-    from .io.read_mesh import read_mesh
-    from .io.write_mesh import write_mesh
-    from .io.atomic_write import check_file_destination
-    from .wrinkles import remove_wrinkles
+    from .pipelines.remove_scan_wrinkles import remove_scan_wrinkles
 
-    check_file_destination(args.out, overwrite=args.overwrite)
-    scan = read_mesh(args.scan, unit=args.scan_units)
-    mask = _region_mask(args.region, scan.n_vertices)
-    smooth = remove_wrinkles(scan, mask)
-    write_mesh(smooth, args.out)
+    region = remove_scan_wrinkles(args.scan, args.region, args.out, scan_unit=args.scan_units,
+                                  overwrite=args.overwrite)
     if not args.quiet:
-        print(f"wrote {args.out}: {int(mask.sum())} of {scan.n_vertices} vertices smoothed")
+        print(f"wrote {args.out}: {int(region.sum())} of {region.size} vertices smoothed")
     return 0
 
 
@@ -820,19 +732,10 @@ def _add_build_anatomy(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_build_anatomy(args: argparse.Namespace) -> int:
-    from pathlib import Path
+    from .pipelines.build_anatomy_model import build_anatomy_model
 
-    from .anatomy import build_anatomy, render_anatomy_layout
-    from .io.atomic_write import atomic_folder, check_folder_destination
-    from .io.read_mesh import read_mesh
-
-    check_folder_destination(args.out, marker_file="anatomy.json", overwrite=args.overwrite)  # before the build
-    scan = read_mesh(args.scan, unit=args.scan_units)
-    anatomy = build_anatomy(scan, landmarks=args.landmarks, n_tets=args.tets, progress=not args.quiet)
-    # the model and its picture appear together or not at all
-    with atomic_folder(args.out, marker_file="anatomy.json", overwrite=args.overwrite) as stage:
-        render_anatomy_layout(anatomy, Path(stage) / "layout.png")
-        anatomy.save(stage)
+    anatomy = build_anatomy_model(args.scan, args.out, scan_unit=args.scan_units, landmarks=args.landmarks,
+                                  n_tets=args.tets, progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {args.out}: {len(anatomy.tets)} tetrahedra, {len(anatomy.muscle_names)} muscles")
     return 0
@@ -993,7 +896,7 @@ def _add_demo(sub: argparse._SubParsersAction) -> None:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    from .demo import run_demo
+    from .pipelines.run_demo import run_demo
 
     summary = run_demo(args.out, n_frames=args.frames, progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:

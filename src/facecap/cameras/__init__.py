@@ -15,6 +15,9 @@ centre of the top-left pixel, ``u`` right, ``v`` down.
 - :func:`read_camera_file` / :func:`write_camera_file` (``camera_file.py``):
   the facecap camera file (JSON): every camera, the footage rate and offset, as a
   :class:`CameraSetup`.
+- :func:`read_footage_cameras` (``read_footage_cameras.py``): the camera of each footage,
+  from a camera file or one calibration file per camera, with the file's footage timing,
+  as a :class:`FootageCameras`.
 - :func:`synchronize` (``synchronize.py``): a :class:`FootageSync` mapping video
   frames to mocap frames by rate ratio and offset, checking the footage covers the take.
 - :func:`read_image` / :func:`write_image` (``image_file.py``): one PNG (8/16-bit),
@@ -40,6 +43,7 @@ from .image_to_float import image_to_float, linear_to_srgb, srgb_to_linear
 from .project_performance import PerformanceProjection, project_performance
 from .ray_cast import RayCaster, RayHits, ray_cast
 from .read_opencv_calibration import read_opencv_calibration, write_opencv_calibration
+from .read_footage_cameras import FootageCameras, read_footage_cameras
 from .synchronize import FootageSync, VideoBracket, synchronize
 from .write_image_sequence import SEQUENCE_FILE, write_image_sequence
 from .write_video import LOSSLESS_VIDEO_CODECS, write_video
@@ -55,6 +59,8 @@ __all__ = [
     "CAMERA_FILE_FORMAT",
     "read_camera_file",
     "write_camera_file",
+    "read_footage_cameras",
+    "FootageCameras",
     "FootageSync",
     "VideoBracket",
     "synchronize",

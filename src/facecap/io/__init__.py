@@ -53,6 +53,8 @@ In the order a user meets them:
   bases folder); :func:`write_conditioned_take` / :func:`read_conditioned_take`
   (``conditioned_take.py``): the take conditioned once by ``plan-scans`` and read
   by the later steps, with :func:`file_sha256` to tell it is the same take.
+- :func:`read_region_mask` (``read_region_mask.py``): a region of a mesh's vertices (a JSON
+  list of indices or a ``.npy`` bool mask), as ``remove-wrinkles`` reads it.
 
 - :func:`atomic_path`, :func:`atomic_folder`, :func:`atomic_write_text`
   (``atomic_write.py``): how every writer writes (under a hidden name, renamed into
@@ -102,6 +104,7 @@ from .read_result import MESH_FILE, Result, read_result
 from .write_usd_blendshapes import (DEFAULT_BLENDSHAPE_TOLERANCE_MM, DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES,
                                     write_usd_blendshapes)
 from .weight_ranges import UnitRangeWeights, to_unit_range
+from .read_region_mask import read_region_mask
 
 __all__ = [
     "write_gltf",
@@ -180,4 +183,5 @@ __all__ = [
     "final_path",
     "recorded_path",
     "resolve_recorded_path",
+    "read_region_mask",
 ]

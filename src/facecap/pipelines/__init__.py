@@ -16,6 +16,8 @@ calls the solver packages (arrays in, arrays out), and writes the result through
   the scans registered into a bases folder; :func:`blend_take` (``blend_take.py``):
   ``facecap blend``, every frame of the take rebuilt from the bases. All three condition the
   take once, as the plan recorded it: :func:`replay_conditioning` (``replay_conditioning.py``).
+  :func:`run_scan_workflow` (``run_scan_workflow.py``): ``facecap scans-pipeline``, the three in one
+  go into one folder, once the scans exist.
 - :func:`write_blended_performance` (``write_blended_performance.py``): the result folder of a
   performance from bases and weights, as ``blend`` writes it.
 - :func:`map_markers` (``map_markers.py``): ``facecap map``, a take's markers placed on a scan and
@@ -39,7 +41,15 @@ calls the solver packages (arrays in, arrays out), and writes the result through
 - :func:`view_result` (``view_result.py``): ``facecap view``, the review page of a result (its
   glTF made if missing, the error heat map against a truth) and its report.
 
-Not here yet (issue 29): the demo's job (``facecap/demo.py``).
+- :func:`build_anatomy_model` (``build_anatomy_model.py``): ``facecap build-anatomy``, the anatomy
+  model folder of a neutral scan (Sifakis et al. 2005, sec. 3) with its layout picture.
+- :func:`remove_scan_wrinkles` (``remove_scan_wrinkles.py``): ``facecap remove-wrinkles``, a neutral
+  scan's wrinkles smoothed out in a region (Bickel et al. 2007, sec. 5.4), written as a new scan.
+- :func:`generate_capture_case` (``generate_capture_case.py``): ``facecap synth``, a capture case
+  with its dense ground truth (and wrinkle footage from two cameras) written as a folder.
+- :func:`run_demo` (``run_demo.py``): ``facecap demo``, the jobs above on the bundled sample (a
+  generated take with its ground truth, the real AnimFace take, generated wrinkle footage), with
+  pictures and ``demo_summary.json``.
 
 The functions share their modules' names, so ``facecap.pipelines.animate_scan`` is the
 function; reach a module itself with ``importlib.import_module``.
@@ -75,6 +85,11 @@ _PUBLIC = {
     "export_result": ("export_result", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES", "MAX_ERROR_PASS_FLOPS"),
     "write_gltf_review": ("write_gltf_review",),
     "view_result": ("view_result", "ERROR_ROWS"),
+    "run_demo": ("run_demo",),
+    "run_scan_workflow": ("run_scan_workflow",),
+    "generate_capture_case": ("generate_capture_case",),
+    "build_anatomy_model": ("build_anatomy_model",),
+    "remove_scan_wrinkles": ("remove_scan_wrinkles",),
 }
 """Each job module's public names, by module."""
 

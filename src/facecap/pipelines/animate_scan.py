@@ -24,6 +24,7 @@ from ..deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM, MarkerOffsets, Mar
 from ..deform.rest_pose import RestPose, choose_rest_pose, neutral_from_frames, neutral_from_take
 from ..deform.thin_shell import DEFAULT_KB_MM2, DEFAULT_KS, ThinShellSolver, UnmarkedPieces
 from ..deform.triharmonic_warp import TriharmonicWarp, check_warp_sources
+from .._mkl import mkl_blas
 from ..errors import FacecapWarning, MarkerError
 from ..io.result_layout import parse_export_formats
 from ..io.result_rig import ResultRig
@@ -214,8 +215,11 @@ def animate_scan(
     # recover it at the rest frame; then the shell is built again)
     planned = np.asarray(matched.vertex_indices[np.arange(len(matched.labels)), np.argmax(matched.weights, axis=1)],
                          dtype=np.int64)
-    # MKL's libraries, which the set-up's first factorisation would load, loaded here, before the other thread starts
+    # MKL's libraries, which the set-up's first factorisation would load, loaded here, before the other thread starts;
+    # and the BLAS bindings of the per-frame product (ctypes), which the set-up would load while the other thread
+    # imports usd-core (seen: the demo hung there, each thread in its own library's load)
     load_backend(backend)
+    mkl_blas()
     with warnings.catch_warnings(record=True) as records, ThreadPoolExecutor(1) as beside_setup:
         warnings.simplefilter("always", FacecapWarning)
         # Beside the set-up, on a second thread: its sparse solves keep one core busy, not two (measured

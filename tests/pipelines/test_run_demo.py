@@ -1,3 +1,5 @@
+"""facecap demo through the command line (the job: facecap/pipelines/run_demo.py), on a short generated take."""
+
 import json
 
 import numpy as np

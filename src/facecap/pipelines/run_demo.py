@@ -1,15 +1,20 @@
-"""``facecap demo``: the main job on the bundled sample, with pictures and a report.
+"""``facecap demo``'s job: the main job on the bundled sample, with pictures and a report.
 
-1. Generates a performance on the bundled ICT face (90 markers 1.5 mm above
-   the skin, 0.2 mm noise, ~2% occlusions, head motion, a different rigid
-   frame) and writes it as a user would hold it: ``inputs/scan.obj``,
-   ``inputs/take.c3d``, ``inputs/map.json``, ``inputs/truth.npz``.
-2. Runs exactly what ``facecap animate`` runs on those files (``animation/``,
-   with a USD export), and the warp-alone baseline.
-3. Evaluates both against the dense ground truth, renders frames and error
-   maps, and plots residuals and error over time (``pictures/``).
-4. Animates the same face from the real AnimFace take (``animface/``), and solves a stretch of
-   it for muscle activations on an anatomical model of the face (``muscles/``).
+The steps, in the order :func:`run_demo` runs them:
+
+1. A performance generated on the bundled ICT face (90 markers 1.5 mm above the skin, 0.2 mm
+   noise, ~2% occlusions, head motion, a different rigid frame), written as a user would hold it:
+   ``inputs/scan.obj``, ``inputs/take.c3d``, ``inputs/map.json``, ``inputs/truth.npz``.
+2. Exactly what ``facecap animate`` runs on those files (``animation/``, with a USD export, its
+   review page against the truth), and the warp-alone baseline (:func:`_generated_take`); both
+   evaluated against the dense ground truth, with frames, error maps and the residuals and
+   error over time drawn (:func:`_draw_generated_take`, ``pictures/``).
+3. The scan workflow of Huang et al. 2011 on the same take (``scans/``, :func:`_scan_workflow`).
+4. The same face animated from the real AnimFace take (``animface/``, :func:`_animate_real_take`),
+   and a stretch of it solved for muscle activations on an anatomical model of the face
+   (``muscles/``, :func:`_muscle_run`).
+5. The wrinkle layer on generated footage of painted wrinkles (``wrinkles/``, :func:`_wrinkle_layer`).
+6. ``demo_summary.json``: each step's figures, and the lines :func:`run_demo` returns.
 
 Everything is written into a staging folder renamed into place at the end. A second run into
 the same folder is refused (one line, before any work) unless ``overwrite`` (``--overwrite``) is
@@ -23,11 +28,42 @@ import json
 import time
 import warnings
 from pathlib import Path
+from typing import Any, NamedTuple
 
+import igl
 import numpy as np
+from scipy.spatial.transform import Rotation
 
-from .errors import FacecapWarning, InputError
-from .io.atomic_write import atomic_folder, recorded_path
+from ..anatomy import build_anatomy, render_anatomy_layout
+from ..cameras import Camera, RayCaster, read_camera_file, read_image
+from ..deform.rbf_deform import rbf_deformation_basis
+from ..errors import FacecapWarning, InputError
+from ..io.atomic_write import atomic_folder, atomic_path, recorded_path
+from ..io.mocap_correspondence import read_mocap_correspondence
+from ..io.read_correspondence import read_correspondence
+from ..io.read_markers import read_markers
+from ..io.read_mesh import read_mesh
+from ..io.read_result import read_result
+from ..muscles import FRAME_FLAG_MEANINGS
+from ..report import MeshPanel, evaluate_performance, plot_series, render_mesh, render_side_by_side
+from ..report.evaluate_result import evaluate_result, read_truth
+from ..structures import MarkerSequence, Mesh
+from ..synth import write_planned_scans
+from ..synth.generate_performance import generate_performance
+from ..synth.ict_sample import bundled_path, load_ict_sample
+from ..synth.wrinkles import every_wrinkle_at_once
+from ..synth.write_footage_case import write_footage_case
+from ..synth.write_synthetic_case import write_synthetic_case
+from ..wrinkles import fit_cross_sections, large_scale_in_mocap, wedge_intensity
+from ..wrinkles.fit_cross_sections import DEFAULT_ROUNDING
+from .animate_scan import AnimationResult, animate_scan
+from .blend_take import blend_take
+from .capture_wrinkles import capture_wrinkles
+from .plan_scans import plan_scans
+from .register_planned_scans import register_planned_scans
+from .solve_muscle_take import solve_muscle_take
+from .view_result import view_result
+from .write_muscle_result import plot_muscle_activations
 
 __all__ = ["run_demo"]
 
@@ -54,145 +90,31 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     -------
     list of str
     """
-    from .pipelines.animate_scan import animate_scan
-    from .deform.rbf_deform import rbf_deformation_basis
-    from .io.read_correspondence import read_correspondence
-    from .io.read_markers import read_markers
-    from .io.read_mesh import read_mesh
-    from .report import MeshPanel, evaluate_performance, plot_series, render_mesh, render_side_by_side
-    from .report.evaluate_result import evaluate_result, read_truth
-    from .pipelines.view_result import view_result
-    from .synth.generate_performance import generate_performance
-    from .synth.ict_sample import load_ict_sample
-    from .synth.write_synthetic_case import write_synthetic_case
-
     if n_frames < 10:
         raise InputError(f"--frames: expected at least 10, got {n_frames}")
     out = Path(out_dir)
-    lines: list[str] = []
     t_start = time.perf_counter()
     with atomic_folder(out, marker_file=_DEMO_MARKER, overwrite=overwrite) as stage:
-        pictures = stage / "pictures"
-        pictures.mkdir()
+        (stage / "pictures").mkdir()
         sample = load_ict_sample()
         case = generate_performance(n_frames=n_frames, seed=7, sample=sample)
         files = write_synthetic_case(
             case, stage / "inputs", region_labels=sample.region_labels, region_names=list(sample.region_names)
         )
-
-        # --- the main job, exactly as `facecap animate` runs it, from the files
-        scan = read_mesh(files.scan, unit="mm")
-        take = read_markers(files.markers)
-        corr = read_correspondence(files.map, scan)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", FacecapWarning)  # head-band markers not in the map: expected
-            result = animate_scan(
-                scan, take, corr, stage / "animation", stabilize=True, exports=("usd",), progress=progress,
-                extra_metadata={"map": recorded_path(files.map, folder=stage / "animation")},
-            )
-        shell_error = evaluate_result(files.truth, result.out_dir)
-        view_result(result.out_dir, truth=files.truth)  # the glTF, review.html with the error heat map, report.html
-
-        # --- the baseline: the same markers deforming the scan by the RBF warp alone
-        vertices = np.load(result.out_dir / "vertices.npy", mmap_mode="r")
-        truth = read_truth(files.truth)
-        truth_v = truth["vertices"]
-        const = corr.vertex_indices[:, 0]
-        labels = json.loads((result.out_dir / "performance.json").read_text())["markers"]
-        rows = [corr.labels.index(s) for s in labels]
-        marker_vertices = const[rows]
-        shell_disp_at_markers = vertices[:, marker_vertices] - scan.vertices[marker_vertices].astype(np.float32)
-        basis = rbf_deformation_basis(scan.vertices, scan.vertices[marker_vertices])
-        warp_only = scan.vertices.astype(np.float32)[None] + np.einsum("kn,tkc->tnc", basis, shell_disp_at_markers)
-        warp_error = evaluate_performance(
-            warp_only, truth_v, region_labels=sample.region_labels, region_names=list(sample.region_names)
-        )
-
-        # --- pictures
-        F = scan.faces
-        worst = int(np.argmax(shell_error.per_frame_mean_mm))
-        busy = int(np.argmax(np.abs(truth_v - truth_v[0]).reshape(n_frames, -1).mean(axis=1)))
-        shell_err_v = np.linalg.norm(vertices[busy] - truth_v[busy], axis=1)
-        warp_err_v = np.linalg.norm(warp_only[busy] - truth_v[busy], axis=1)
-        # one colour scale for every dense-error map of the generated take (this picture and the methods'
-        # comparison), set by the thin shell at its busiest frame: the warp alone goes past it (the arrow)
-        error_vmax = float(np.percentile(shell_err_v, 99))
-        picture_ranges: dict[str, list[float]] = {}
-        drawn = render_side_by_side(
-            [
-                MeshPanel(truth_v[busy], F, None, f"ground truth, frame {busy}"),
-                MeshPanel(np.asarray(vertices[busy]), F, None, "facecap (thin shell)"),
-                MeshPanel(np.asarray(vertices[busy]), F, shell_err_v, "thin shell error"),
-                MeshPanel(warp_only[busy], F, warp_err_v, "warp alone error"),
-            ],
-            pictures / "frame_comparison.png",
-            value_label="error (mm)", vmin=0.0, vmax=error_vmax,
-            title=f"Generated take, frame {busy} (the busiest): dense error against ground truth",
-            caption=f"One colour scale here and in methods_error_comparison.png: 0 to {error_vmax:.2f} mm, the thin "
-                    "shell's 99th percentile at this frame; larger errors (the warp alone's neck) in the top colour.",
-        )
-        picture_ranges["frame_comparison.png"] = [drawn.vmin, drawn.vmax]
-        for frame in sorted({0, busy, worst}):
-            render_mesh(np.asarray(vertices[frame]), F, pictures / f"result_frame_{frame:04d}.png",
-                        title=f"facecap result, frame {frame}")
-        render_mesh(scan.vertices, F, pictures / "error_mean_per_vertex.png", values=shell_error.per_vertex_mean_mm,
-                    value_label="mean error over the take (mm)", title="Thin shell: mean error per vertex")
-        times = take.times
-        plot_series(times, {"thin shell (mean)": shell_error.per_frame_mean_mm,
-                            "warp alone (mean)": warp_error.per_frame_mean_mm,
-                            "thin shell (max)": shell_error.per_frame_max_mm},
-                    pictures / "dense_error_over_time.png", ylabel="dense error (mm)",
-                    title="Dense error against ground truth")
-        report = result.report
-        plot_series(times, {"conditioning change (RMS)": np.asarray(report["conditioning_mm"]["per_frame_rms_change"]),
-                            "stabilisation residual (RMS)": np.asarray(report["stabilization_residual_mm"])},
-                    pictures / "marker_residuals.png", ylabel="mm",
-                    title="Marker conditioning: filter change and head-stabilisation residual")
-
-        # --- the scan workflow (Huang et al. 2011) on the same take and face
-        scan_lines = _scan_workflow(stage, case, files, shell_error, vertices, error_vmax, progress)
-        picture_ranges.update(scan_lines.pop("picture_ranges"))
-
-        # --- the real take on the same face
-        real_lines = _animate_real_take(stage, sample, progress, render_mesh, plot_series)
-
-        # --- the muscle-driven face (Sifakis et al. 2005) on a stretch of the same real take
-        muscle_lines = _muscle_run(stage, sample, real_lines["summary"]["busiest_frame"], progress)
-
-        # --- the wrinkle layer (Bickel et al. 2007, 5) on generated footage of painted wrinkles
-        wrinkle_lines = _wrinkle_layer(stage, progress)
-
-        summary = {
-            "generated_take": {
-                "frames": n_frames, "rate_hz": take.rate, "markers": report["n_markers"],
-                "vertices": report["n_vertices"],
-                "thin_shell": shell_error.to_dict(),
-                "warp_alone": warp_error.to_dict(),
-                "timings": report["timings"],
-            },
-            "scan_workflow": scan_lines["summary"],
-            "animface_take": real_lines["summary"],
-            "muscles": muscle_lines["summary"],
-            "wrinkles": wrinkle_lines["summary"],
-            "seconds": time.perf_counter() - t_start,
-            "picture_colour_ranges_mm": picture_ranges,
-        }
-        for key in ("thin_shell", "warp_alone"):
-            for drop in ("per_frame_mean_mm", "per_frame_max_mm"):
-                summary["generated_take"][key].pop(drop, None)
+        generated = _generated_take(stage, sample, files, progress)
+        error_vmax, picture_ranges = _draw_generated_take(stage / "pictures", generated)
+        steps = {"generated_take": _said_of_generated_take(generated)}
+        steps["scan_workflow"] = _scan_workflow(stage, case, files, generated.shell_error, generated.vertices,
+                                                error_vmax, progress)
+        picture_ranges.update(steps["scan_workflow"].pop("picture_ranges"))
+        steps["animface_take"] = _animate_real_take(stage, sample, progress)
+        steps["muscles"] = _muscle_run(stage, sample, steps["animface_take"]["summary"]["busiest_frame"], progress)
+        steps["wrinkles"] = _wrinkle_layer(stage, progress)
+        summary = {name: step["summary"] for name, step in steps.items()}
+        summary["seconds"] = time.perf_counter() - t_start
+        summary["picture_colour_ranges_mm"] = picture_ranges
         (stage / _DEMO_MARKER).write_text(json.dumps(summary, indent=1))
-        lines += [
-            f"generated take: {n_frames} frames at {take.rate:.0f} Hz, {report['n_markers']} markers, "
-            f"{report['n_vertices']} vertices",
-            f"  thin shell dense error: mean {shell_error.mean_mm:.3f} mm, p95 {shell_error.p95_mm:.3f} mm, "
-            f"max {shell_error.max_mm:.3f} mm",
-            f"  warp alone dense error: mean {warp_error.mean_mm:.3f} mm, p95 {warp_error.p95_mm:.3f} mm, "
-            f"max {warp_error.max_mm:.3f} mm",
-            *scan_lines["lines"],
-            *real_lines["lines"],
-            *muscle_lines["lines"],
-            *wrinkle_lines["lines"],
-        ]
+        lines = [line for step in steps.values() for line in step["lines"]]
     lines.append(f"wrote {out}/ in {time.perf_counter() - t_start:.1f} s: animation/ (vertices.npy, rig/, "
                  f"performance_rig.usdc, performance.glb, report.html), scans/ (plan, scans, bases, blend), animface/, "
                  f"muscles/ (model, solved take), "
@@ -201,6 +123,121 @@ def run_demo(out_dir: str | Path = "facecap-demo", *, n_frames: int = 300, progr
     lines.append(f"look at it: facecap view {out}/animation --truth {out}/inputs/truth.npz "
                  "(the take in the browser, with its error against the truth)")
     return lines
+
+
+class _GeneratedTake(NamedTuple):
+    """The generated take animated as ``facecap animate`` does, and by the warp alone, against its truth."""
+
+    scan: Mesh
+    take: MarkerSequence
+    result: AnimationResult
+    vertices: Any  # (T, n, 3) float32, the thin shell's vertices.npy (memory-mapped)
+    truth_vertices: np.ndarray  # (T, n, 3)
+    warp_alone: np.ndarray  # (T, n, 3) float32
+    shell_error: Any  # DenseError
+    warp_error: Any  # DenseError
+
+
+def _generated_take(stage: Path, sample, files, progress: bool) -> _GeneratedTake:
+    """The main job, exactly as ``facecap animate`` runs it from the files, its review, and the warp alone."""
+    scan = read_mesh(files.scan, unit="mm")
+    take = read_markers(files.markers)
+    corr = read_correspondence(files.map, scan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FacecapWarning)  # head-band markers not in the map: expected
+        result = animate_scan(
+            scan, take, corr, stage / "animation", stabilize=True, exports=("usd",), progress=progress,
+            extra_metadata={"map": recorded_path(files.map, folder=stage / "animation")},
+        )
+    shell_error = evaluate_result(files.truth, result.out_dir)
+    view_result(result.out_dir, truth=files.truth)  # the glTF, review.html with the error heat map, report.html
+    vertices = np.load(result.out_dir / "vertices.npy", mmap_mode="r")
+    truth_v = read_truth(files.truth)["vertices"]
+    warp_only = _warp_alone(scan, corr, result, vertices)
+    warp_error = evaluate_performance(
+        warp_only, truth_v, region_labels=sample.region_labels, region_names=list(sample.region_names)
+    )
+    return _GeneratedTake(scan, take, result, vertices, truth_v, warp_only, shell_error, warp_error)
+
+
+def _warp_alone(scan: Mesh, corr, result: AnimationResult, vertices) -> np.ndarray:
+    """The baseline: the scan deformed by the RBF warp alone, from the thin shell's motion at the markers."""
+    const = corr.vertex_indices[:, 0]
+    labels = json.loads((result.out_dir / "performance.json").read_text())["markers"]
+    rows = [corr.labels.index(s) for s in labels]
+    marker_vertices = const[rows]
+    shell_disp_at_markers = vertices[:, marker_vertices] - scan.vertices[marker_vertices].astype(np.float32)
+    basis = rbf_deformation_basis(scan.vertices, scan.vertices[marker_vertices])
+    return scan.vertices.astype(np.float32)[None] + np.einsum("kn,tkc->tnc", basis, shell_disp_at_markers)
+
+
+def _draw_generated_take(pictures: Path, generated: _GeneratedTake) -> tuple[float, dict[str, list[float]]]:
+    """The generated take's pictures; returns the dense-error maps' colour top (mm) and the ranges drawn."""
+    scan, vertices, truth_v, warp_only = generated.scan, generated.vertices, generated.truth_vertices, generated.warp_alone
+    shell_error = generated.shell_error
+    n_frames = truth_v.shape[0]
+    F = scan.faces
+    worst = int(np.argmax(shell_error.per_frame_mean_mm))
+    busy = int(np.argmax(np.abs(truth_v - truth_v[0]).reshape(n_frames, -1).mean(axis=1)))
+    shell_err_v = np.linalg.norm(vertices[busy] - truth_v[busy], axis=1)
+    warp_err_v = np.linalg.norm(warp_only[busy] - truth_v[busy], axis=1)
+    # one colour scale for every dense-error map of the generated take (this picture and the methods'
+    # comparison), set by the thin shell at its busiest frame: the warp alone goes past it (the arrow)
+    error_vmax = float(np.percentile(shell_err_v, 99))
+    drawn = render_side_by_side(
+        [
+            MeshPanel(truth_v[busy], F, None, f"ground truth, frame {busy}"),
+            MeshPanel(np.asarray(vertices[busy]), F, None, "facecap (thin shell)"),
+            MeshPanel(np.asarray(vertices[busy]), F, shell_err_v, "thin shell error"),
+            MeshPanel(warp_only[busy], F, warp_err_v, "warp alone error"),
+        ],
+        pictures / "frame_comparison.png",
+        value_label="error (mm)", vmin=0.0, vmax=error_vmax,
+        title=f"Generated take, frame {busy} (the busiest): dense error against ground truth",
+        caption=f"One colour scale here and in methods_error_comparison.png: 0 to {error_vmax:.2f} mm, the thin "
+                "shell's 99th percentile at this frame; larger errors (the warp alone's neck) in the top colour.",
+    )
+    for frame in sorted({0, busy, worst}):
+        render_mesh(np.asarray(vertices[frame]), F, pictures / f"result_frame_{frame:04d}.png",
+                    title=f"facecap result, frame {frame}")
+    render_mesh(scan.vertices, F, pictures / "error_mean_per_vertex.png", values=shell_error.per_vertex_mean_mm,
+                value_label="mean error over the take (mm)", title="Thin shell: mean error per vertex")
+    times = generated.take.times
+    plot_series(times, {"thin shell (mean)": shell_error.per_frame_mean_mm,
+                        "warp alone (mean)": generated.warp_error.per_frame_mean_mm,
+                        "thin shell (max)": shell_error.per_frame_max_mm},
+                pictures / "dense_error_over_time.png", ylabel="dense error (mm)",
+                title="Dense error against ground truth")
+    report = generated.result.report
+    plot_series(times, {"conditioning change (RMS)": np.asarray(report["conditioning_mm"]["per_frame_rms_change"]),
+                        "stabilisation residual (RMS)": np.asarray(report["stabilization_residual_mm"])},
+                pictures / "marker_residuals.png", ylabel="mm",
+                title="Marker conditioning: filter change and head-stabilisation residual")
+    return error_vmax, {"frame_comparison.png": [drawn.vmin, drawn.vmax]}
+
+
+def _said_of_generated_take(generated: _GeneratedTake) -> dict:
+    """The generated take's part of ``demo_summary.json`` and its printed lines."""
+    take, report = generated.take, generated.result.report
+    shell_error, warp_error = generated.shell_error, generated.warp_error
+    n_frames = generated.truth_vertices.shape[0]
+    per_frame = ("per_frame_mean_mm", "per_frame_max_mm")
+    summary = {
+        "frames": n_frames, "rate_hz": take.rate, "markers": report["n_markers"],
+        "vertices": report["n_vertices"],
+        "thin_shell": {k: v for k, v in shell_error.to_dict().items() if k not in per_frame},
+        "warp_alone": {k: v for k, v in warp_error.to_dict().items() if k not in per_frame},
+        "timings": report["timings"],
+    }
+    lines = [
+        f"generated take: {n_frames} frames at {take.rate:.0f} Hz, {report['n_markers']} markers, "
+        f"{report['n_vertices']} vertices",
+        f"  thin shell dense error: mean {shell_error.mean_mm:.3f} mm, p95 {shell_error.p95_mm:.3f} mm, "
+        f"max {shell_error.max_mm:.3f} mm",
+        f"  warp alone dense error: mean {warp_error.mean_mm:.3f} mm, p95 {warp_error.p95_mm:.3f} mm, "
+        f"max {warp_error.max_mm:.3f} mm",
+    ]
+    return {"summary": summary, "lines": lines}
 
 
 def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, error_vmax: float, progress: bool) -> dict:
@@ -213,11 +250,6 @@ def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, error_
     the one the plan rebuilds worst from its markers, on the colour scale ``error_vmax`` (mm)
     of ``frame_comparison.png``.
     """
-    from .pipelines import blend_take, plan_scans, register_planned_scans
-    from .report import MeshPanel, plot_series, render_side_by_side
-    from .report.evaluate_result import evaluate_result
-    from .synth import write_planned_scans
-
     root = stage / "scans"
     root.mkdir()
     pictures = stage / "pictures"
@@ -273,15 +305,8 @@ def _scan_workflow(stage: Path, case, files, shell_error, shell_vertices, error_
             "picture_ranges": {"methods_error_comparison.png": [drawn.vmin, drawn.vmax]}}
 
 
-def _animate_real_take(stage: Path, sample, progress: bool, render_mesh, plot_series) -> dict:
+def _animate_real_take(stage: Path, sample, progress: bool) -> dict:
     """Animate the bundled ICT face from the real AnimFace take and check it without ground truth."""
-    import igl
-
-    from .pipelines.animate_scan import animate_scan
-    from .io.read_correspondence import read_correspondence
-    from .io.read_markers import read_markers
-    from .synth.ict_sample import bundled_path
-
     take = read_markers(bundled_path("eyebrows.c3d"))
     corr = read_correspondence(bundled_path("ict_generic_map.json"), sample.mesh)
     with warnings.catch_warnings():
@@ -350,15 +375,6 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
     5-10 mm stay on the brow markers. The solve is right within its model's reach (docs/muscles.md, "The
     reach"); the activation picture says so on its face.
     """
-    from scipy.spatial.transform import Rotation
-
-    from .anatomy import build_anatomy, render_anatomy_layout
-    from .io.read_markers import read_markers
-    from .muscles import FRAME_FLAG_MEANINGS
-    from .pipelines import plot_muscle_activations, solve_muscle_take
-    from .report import MeshPanel, render_side_by_side
-    from .synth.ict_sample import bundled_path
-
     folder = stage / "muscles"
     pictures = stage / "pictures"
     anatomy = build_anatomy(sample.mesh, n_tets=_MUSCLE_DEMO_TETS, progress=False)
@@ -372,39 +388,68 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
                                  scheduler="synchronous", chunk_frames=_MUSCLE_DEMO_FRAMES, progress=progress,
                                  extra_metadata={"map": recorded_path(bundled_path("ict_generic_map.json"),
                                                                       folder=folder / "animface")})
-    report = done.report
+    activity = _muscle_activity(done, list(anatomy.muscle_names), first, busiest)
+    _draw_muscle_run(stage, sample, done, activity, first)
+    return _said_of_muscle_run(anatomy, done.report, activity, first)
+
+
+class _MuscleActivity(NamedTuple):
+    """What the muscle solve of the demo did, read from its result folder."""
+
+    names: list[str]  # the model's muscles
+    frames: np.ndarray  # (T,) int64, take frames of activations.csv
+    activations: np.ndarray  # (T, muscles)
+    shown: int  # the row of the take's busiest frame
+    strongest: list[str]  # the three most activated muscles
+    at_bound: list[str]  # the muscles at full activation in some frame
+    flag_counts: dict[str, int]  # frames flagged, by flag
+    brows: dict  # _brow_change at the shown frame
+
+
+def _muscle_activity(done, names: list[str], first: int, busiest: int) -> _MuscleActivity:
+    """The solve's activations, its strongest muscles, its flags, and the brows' motion at the shown frame."""
     V = np.load(done.out_dir / "vertices.npy", mmap_mode="r")
-    shell = np.load(stage / "animface" / "vertices.npy", mmap_mode="r")
     j = int(np.clip(busiest - first, 0, V.shape[0] - 1))
-    names = list(anatomy.muscle_names)
     table = np.loadtxt(done.out_dir / "activations.csv", delimiter=",", skiprows=1)
     frames, A = table[:, 0].astype(np.int64), table[:, 1:]
     strongest = [names[i] for i in np.argsort(-A.max(axis=0))[:3]]
     at_bound = [names[i] for i in np.flatnonzero(A.max(axis=0) >= 1.0 - 1e-3)]
-    lowerers = [name for name in at_bound if name.startswith(("corrugator", "procerus", "depressor_supercilii"))]
     flag_counts: dict[str, int] = {}
-    for frame_flags in report["flags"].values():
+    for frame_flags in done.report["flags"].values():
         for flag in frame_flags:
             flag_counts[flag] = flag_counts.get(flag, 0) + 1
-    flagged_said = "; ".join(f"{flag}: {FRAME_FLAG_MEANINGS.get(flag, flag)}" for flag in sorted(flag_counts))
     brows = _brow_change(read_markers(bundled_path("eyebrows.c3d")), first + j)
+    return _MuscleActivity(names, frames, A, j, strongest, at_bound, flag_counts, brows)
+
+
+def _draw_muscle_run(stage: Path, sample, done, activity: _MuscleActivity, first: int) -> None:
+    """The activations over the solved frames, and the muscle face beside the thin shell's at the shown frame."""
+    pictures = stage / "pictures"
+    report, names, j, brows = done.report, activity.names, activity.shown, activity.brows
+    lowerers = [name for name in activity.at_bound
+                if name.startswith(("corrugator", "procerus", "depressor_supercilii"))]
+    flag_counts = activity.flag_counts
+    flagged_said = "; ".join(f"{flag}: {FRAME_FLAG_MEANINGS.get(flag, flag)}" for flag in sorted(flag_counts))
     residual = report["marker_residual_mm"]
     at_j = {label: r for label, r in zip(residual["labels"], residual["per_frame"][j]) if r is not None}
     worst_markers = sorted(at_j, key=at_j.get, reverse=True)[:4]
     performance = json.loads((done.out_dir / "performance.json").read_text())
     plot_muscle_activations(
-        pictures / "muscles_activations.png", frames, float(performance["rate"]), tuple(names), A, report, performance,
+        pictures / "muscles_activations.png", activity.frames, float(performance["rate"]), tuple(names),
+        activity.activations, report, performance,
         title=f"Real take (AnimFace), frames {first}-{first + _MUSCLE_DEMO_FRAMES - 1}: muscle activations "
               f"into {brows['expression']}",
         caption=f"At frame {first + j} {brows['said']} (marker distances in the raw take).\n"
-                f"{len(at_bound)} muscles reach 1, full activation (the solve's bound)"
+                f"{len(activity.at_bound)} muscles reach 1, full activation (the solve's bound)"
                 + (f", among them the brow lowerers ({', '.join(lowerers)}): the model at full strength does not "
                    "move the brows as far as the markers do" if lowerers else "") + ".\n"
-                f"Shaded: {report['frames_flagged']} of {len(frames)} frames flagged ({flagged_said}); at frame "
+                f"Shaded: {report['frames_flagged']} of {len(activity.frames)} frames flagged ({flagged_said}); at frame "
                 f"{first + j}: " + ", ".join(f"{m} {at_j[m]:.1f} mm" for m in worst_markers) + ".")
     # the solved cranium's turn (the nearest rotation to its affine part): the head the muscle face carries
     turn_deg = float(np.degrees(Rotation.from_matrix(np.load(done.out_dir / "bone_transforms.npz")["cranium"][j][:, :3])
                                 .magnitude()))
+    V = np.load(done.out_dir / "vertices.npy", mmap_mode="r")
+    shell = np.load(stage / "animface" / "vertices.npy", mmap_mode="r")
     rest = sample.mesh.vertices
     muscle_motion = np.linalg.norm(np.asarray(V[j], np.float64) - rest, axis=1)
     shell_motion = np.linalg.norm(np.asarray(shell[first + j], np.float64) - rest, axis=1)
@@ -418,6 +463,12 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
                 f"cranium, turned {turn_deg:.1f} degrees here:\nthe solve tilts the head to bring the brows nearer the "
                 "markers than its muscles can, hence the neck's colour.",
     )
+
+
+def _said_of_muscle_run(anatomy, report: dict, activity: _MuscleActivity, first: int) -> dict:
+    """The muscle run's part of ``demo_summary.json`` and its printed lines."""
+    names, A, flag_counts, brows = activity.names, activity.activations, activity.flag_counts, activity.brows
+    strongest = activity.strongest
     summary = {
         "frames": [first, first + _MUSCLE_DEMO_FRAMES], "tetrahedra": int(anatomy.n_tets),
         "muscles": len(names), "markers": report["n_markers"], "markers_left_out": report["markers_left_out"],
@@ -426,7 +477,7 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
                                                                     dtype=np.float64))),
         "frames_flagged": report["frames_flagged"],
         "flags": {flag: {"frames": n, "meaning": FRAME_FLAG_MEANINGS.get(flag, flag)} for flag, n in flag_counts.items()},
-        "expression": brows["said"], "muscles_at_full_activation": at_bound,
+        "expression": brows["said"], "muscles_at_full_activation": activity.at_bound,
         "inverted_tets_max": int(max(report["inverted_tets"])), "activation_max": float(A.max()),
         "strongest_muscles": strongest, "seconds": report["timings"]["total_s"],
     }
@@ -437,7 +488,7 @@ def _muscle_run(stage: Path, sample, busiest: int, progress: bool) -> dict:
             f"{first + _MUSCLE_DEMO_FRAMES - 1} from {report['n_markers']} markers: marker rms "
             f"{summary['marker_rms_mm']:.2f} mm (median frame {summary['marker_rms_median_frame_mm']:.2f}), "
             f"strongest {', '.join(strongest)} ({report['timings']['total_s']:.0f} s)",
-            f"  {report['frames_flagged']} of {len(frames)} frames flagged ("
+            f"  {report['frames_flagged']} of {len(activity.frames)} frames flagged ("
             + "; ".join(f"{n} {flag}: {FRAME_FLAG_MEANINGS.get(flag, flag)}" for flag, n in sorted(flag_counts.items()))
             + (f"): {brows['expression']} beyond the model's reach" if "large_residual" in flag_counts else ")")
             + ", see pictures/muscles_activations.png",
@@ -476,6 +527,10 @@ def _brow_change(take, frame: int, rest_frame: int = 0) -> dict:
     return {"expression": expression, "said": said, "to_eye_mm": to_eye, "between_mm": between}
 
 
+_WRINKLE_FRAME = 8
+"""The mocap frame the wrinkle pictures show: the take's last, a video frame, every wrinkle at its deepest."""
+
+
 def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     """A 9-frame take with painted-wrinkle footage: animate, then the wrinkle layer, with its pictures.
 
@@ -489,27 +544,6 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     "large scale" showed half the truth's smile; with the head also left unstabilised it was 2.8 mm off the
     truth's large scale at frame 8, now 0.86 mm, where the rest frame alone gives 0.82).
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .cameras import RayCaster, read_camera_file, read_image
-    from .pipelines.animate_scan import animate_scan
-    from .io.atomic_write import atomic_path
-    from .io.mocap_correspondence import read_mocap_correspondence
-    from .io.read_correspondence import read_correspondence
-    from .io.read_markers import read_markers
-    from .io.read_mesh import read_mesh
-    from .io.read_result import read_result
-    from .report import MeshPanel, render_side_by_side
-    from .synth.ict_sample import load_ict_sample
-    from .synth.wrinkles import every_wrinkle_at_once
-    from .synth.write_footage_case import write_footage_case
-    from .pipelines import capture_wrinkles
-    from .wrinkles import fit_cross_sections, large_scale_in_mocap, wedge_intensity
-    from .wrinkles.fit_cross_sections import DEFAULT_ROUNDING
-
     t0 = time.perf_counter()
     folder = stage / "wrinkles"
     files = write_footage_case(folder / "inputs", n_frames=9, seed=2,
@@ -525,7 +559,7 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     truth = np.load(files.truth)
     A = read_result(folder / "large_scale").frames().astype(np.float64)
     W = read_result(folder / "result").frames().astype(np.float64)
-    t = 8  # the last mocap frame, a video frame: every wrinkle at its deepest
+    t = _WRINKLE_FRAME
     video = int(round((t - setup.first_mocap_frame) * setup.video_rate_hz / take.rate))
     true = (truth["vertices"][t] - truth["large_scale"][t]).astype(np.float64)
     added = W[t] - A[t]
@@ -534,15 +568,50 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     ratio = float(error[wrinkle].mean() / np.linalg.norm(true, axis=1)[wrinkle].mean())
     outside = float(np.linalg.norm(added, axis=1)[~truth["wrinkle_mask"]].max())
     pictures = stage / "pictures"
-
     camera = setup.cameras[0]
-    image = read_image(files.videos[0] / f"frame_{video:06d}.png")
-    doc = json.loads((done.out_dir / "wrinkles.json").read_text())
     frame_said = f"video frame {video} = mocap frame {t} ({t / take.rate:.2f} s)"
+    section = _shown_cross_section(folder, camera, files.videos[0] / f"frame_{video:06d}.png", done.out_dir, video,
+                                   scan.faces, A[t], truth, t)
+    _draw_cross_section(pictures / "wrinkles_cross_section.png", section, camera, frame_said)
+    _draw_tracked_splines(pictures / "wrinkles_tracked_splines.png", section, camera, frame_said)
+    _draw_wrinkle_frame(pictures, scan.faces, A[t], W[t], truth["vertices"][t].astype(np.float64), true, error,
+                        wrinkle, ratio, t, frame_said)
+    seconds = time.perf_counter() - t0
+    large_scale_error = float(np.linalg.norm(A[t] - truth["large_scale"][t], axis=1).mean())
+    summary = {"video_frames": done.n_video_frames, "ratio_to_adding_nothing": ratio,
+               "large_scale_mean_error_mm": large_scale_error, "cross_section": {
+                   "wrinkle": section.wrinkle_name, "width_mm": float(section.fit.width[section.best]),
+                   "depth_mm": float(section.fit.depth[section.best]),
+                   "true_width_mm": section.true_width_mm, "true_depth_mm": section.true_depth_mm},
+               "outside_wrinkle_mask_max_mm": outside, "timings": done.timings, "seconds": seconds}
+    lines = [f"wrinkle layer: {done.n_video_frames} video frames, 2 cameras, {scan.n_vertices} vertices",
+             f"  error over the wrinkles {ratio:.2f} of adding nothing (mocap frame {t}); "
+             f"outside them at most {outside:.3f} mm; {seconds:.0f} s with the footage rendered"]
+    return {"summary": summary, "lines": lines}
 
-    # one fitted cross-section against the observed intensities
+
+class _CrossSection(NamedTuple):
+    """The one fitted cross-section the wrinkle pictures show, in one camera's image of one video frame."""
+
+    image: np.ndarray  # the camera's image, as stored
+    doc: dict  # wrinkles.json
+    video: int  # the video frame
+    samples: Any  # the sampled cross-sections (fit_cross_sections)
+    fit: Any  # their fits
+    best: int  # the one shown
+    on_truth: bool  # whether it lies on one of the truth's wrinkles
+    wrinkle_name: str  # that wrinkle's name, or "(none of the truth's)"
+    true_width_mm: float  # the truth's width and depth there (NaN off the truth's wrinkles)
+    true_depth_mm: float
+
+
+def _shown_cross_section(folder: Path, camera: Camera, image_path: Path, result_dir: Path, video: int, F: np.ndarray,
+                         large_scale: np.ndarray, truth, t: int) -> _CrossSection:
+    """Fit the cross-sections of the tracked wrinkles in one image; pick a typical one and find its truth."""
+    image = read_image(image_path)
+    doc = json.loads((result_dir / "wrinkles.json").read_text())
     correspondence = read_mocap_correspondence(folder / "large_scale" / "correspondence.npz")
-    caster = RayCaster(large_scale_in_mocap(A[t], correspondence, t), scan.faces)
+    caster = RayCaster(large_scale_in_mocap(large_scale, correspondence, t), F)
     curves = [np.asarray(entry["splines_px"][camera.name]) for entry in doc["frames"][video]["wrinkles"]
               if camera.name in entry["splines_px"]]
     sections = fit_cross_sections(image, curves, camera, caster)
@@ -555,8 +624,6 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
         found = np.isfinite(fit.rms)
     deep = found & (fit.depth >= np.median(fit.depth[found]))
     best = int(np.flatnonzero(deep)[np.argmin(fit.rms[deep])])
-    valid = samples.valid[best]
-    p = samples.p
     # which true wrinkle the cross-section lies on, and the truth there: the generator's valley lines of this
     # frame (scan frame) carried into the mocap frame and projected, the nearest point to the section's centre
     to_mocap = truth["mocap_from_scan"] @ truth["head_pose"][t]
@@ -567,69 +634,87 @@ def _wrinkle_layer(stage: Path, progress: bool) -> dict:
     wrinkle_name = str(truth["curve_names"][curve]) if on_truth else "(none of the truth's)"
     true_w, true_d = ((float(truth["widths"][t, curve, point]), float(truth["depths"][t, curve, point])) if on_truth
                       else (float("nan"), float("nan")))
+    return _CrossSection(image, doc, video, samples, fit, best, on_truth, wrinkle_name, true_w, true_d)
+
+
+def _pyplot():
+    """matplotlib's pyplot, drawing off screen."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _draw_cross_section(path: Path, section: _CrossSection, camera: Camera, frame_said: str) -> None:
+    """The shown cross-section's observed intensities, with the shading model at the fitted and the true shape."""
+    plt = _pyplot()
+    fit, samples, best = section.fit, section.samples, section.best
+    true_w, true_d = section.true_width_mm, section.true_depth_mm
+    valid = samples.valid[best]
+    p = samples.p
     fig, ax = plt.subplots(figsize=(8, 4.6), dpi=110)
     ax.plot(p[valid], samples.intensity[best, valid] / fit.ambient[best], ".", ms=3,
             label="observed intensity / unshadowed level")
     model = wedge_intensity(p - fit.offset[best], fit.width[best], fit.depth[best], rounding=DEFAULT_ROUNDING)
     ax.plot(p, model, "-", label=f"model (eq. 6) at the fitted w {fit.width[best]:.2f} mm, d {fit.depth[best]:.2f} mm")
-    if on_truth:
+    if section.on_truth:
         ax.plot(p, wedge_intensity(p - fit.offset[best], true_w, true_d, rounding=DEFAULT_ROUNDING), "--",
                 color="0.4", lw=1.0, label=f"model (eq. 6) at the true w {true_w:.2f} mm, d {true_d:.2f} mm")
     ax.set_xlabel("distance across the valley (mm)")
     ax.set_ylabel("intensity ratio")
-    ax.set_title(f"Wrinkle {wrinkle_name}, {camera.name}, {frame_said}:\none cross-section, its width w and depth d "
-                 "fitted by eq. 7 to the shading model of eq. 6", fontsize=10)
+    ax.set_title(f"Wrinkle {section.wrinkle_name}, {camera.name}, {frame_said}:\none cross-section, its width w and "
+                 "depth d fitted by eq. 7 to the shading model of eq. 6", fontsize=10)
     ax.legend(fontsize=8, loc="lower right")
-    with atomic_path(pictures / "wrinkles_cross_section.png") as tmp:
+    with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", bbox_inches="tight")
     plt.close(fig)
 
-    # the footage with the tracked splines, and where that cross-section lies
+
+def _draw_tracked_splines(path: Path, section: _CrossSection, camera: Camera, frame_said: str) -> None:
+    """The footage with the tracked valley splines, and where the shown cross-section lies."""
+    plt = _pyplot()
+    image, samples, best, p = section.image, section.samples, section.best, section.samples.p
     fig, ax = plt.subplots(figsize=(11, 8.3), dpi=100)
     ax.imshow(np.clip(image.astype(np.float64) / np.iinfo(image.dtype).max / 0.8, 0, 1) ** (1 / 2.2))
-    for entry in doc["frames"][video]["wrinkles"]:
+    for entry in section.doc["frames"][section.video]["wrinkles"]:
         spline = entry["splines_px"].get(camera.name)
         if spline:
             P = np.asarray(spline)
             ax.plot(P[:, 0], P[:, 1], "-", color="cyan", lw=1.2)
     across = samples.centres_px[best] + np.outer([p[0], p[-1]], samples.normals_px[best]) / samples.mm_per_px[best]
     ax.plot(across[:, 0], across[:, 1], "-", color="red", lw=2.0,
-            label=f"the cross-section of wrinkles_cross_section.png ({wrinkle_name})")
+            label=f"the cross-section of wrinkles_cross_section.png ({section.wrinkle_name})")
     ax.legend(loc="lower left", fontsize=9)
     ax.set_axis_off()
     ax.set_title(f"{camera.name}, {frame_said}: the tracked valley splines (eq. 5)")
-    with atomic_path(pictures / "wrinkles_tracked_splines.png") as tmp:
+    with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", bbox_inches="tight")
     plt.close(fig)
 
-    # the frame: large scale, with wrinkles, truth; the error against adding nothing. Whole meshes, framed
-    # alike (the default bounds: every panel's extent), so nothing is cut at the edges
+
+def _draw_wrinkle_frame(pictures: Path, F: np.ndarray, large_scale: np.ndarray, with_wrinkles: np.ndarray,
+                        truth: np.ndarray, true: np.ndarray, error: np.ndarray, wrinkle: np.ndarray, ratio: float,
+                        t: int, frame_said: str) -> None:
+    """The frame: large scale, with wrinkles, truth; and the error against adding nothing.
+
+    Whole meshes, framed alike (the default bounds: every panel's extent), so nothing is cut at the edges.
+    """
     size = np.linalg.norm(true, axis=1)
     vmax = float(np.percentile(size[wrinkle], 99))
-    F = scan.faces
     symbols = ("A: the large scale (animate, from the markers); W: A with the wrinkle layer; "
                "G: the truth (ground truth with wrinkles);\nL: the truth's large scale, G without its wrinkles. "
                "The true wrinkles are G - L, the ones added W - A.")
     render_side_by_side(
-        [MeshPanel(A[t], F, None, "A: large scale (animate)"), MeshPanel(W[t], F, None, "W: with wrinkles"),
-         MeshPanel(truth["vertices"][t].astype(np.float64), F, None, "G: truth")],
+        [MeshPanel(large_scale, F, None, "A: large scale (animate)"), MeshPanel(with_wrinkles, F, None, "W: with wrinkles"),
+         MeshPanel(truth, F, None, "G: truth")],
         pictures / "wrinkles_frame.png", title=f"{frame_said[0].upper()}{frame_said[1:]}: the wrinkle layer",
         panel_size_px=(700, 860), caption=symbols)
     render_side_by_side(
-        [MeshPanel(A[t], F, size, "adding nothing: |G - L|, the true wrinkles"),
-         MeshPanel(W[t], F, error, "with wrinkles: |(W - A) - (G - L)|")],
+        [MeshPanel(large_scale, F, size, "adding nothing: |G - L|, the true wrinkles"),
+         MeshPanel(with_wrinkles, F, error, "with wrinkles: |(W - A) - (G - L)|")],
         pictures / "wrinkles_error.png", value_label="wrinkle displacement error (mm)", vmin=0.0, vmax=vmax,
         panel_size_px=(700, 860), caption=symbols,
         title=f"Mocap frame {t}: the wrinkle displacement's error against the truth "
               f"(over the wrinkles {ratio:.2f} of adding nothing)")
-    seconds = time.perf_counter() - t0
-    large_scale_error = float(np.linalg.norm(A[t] - truth["large_scale"][t], axis=1).mean())
-    summary = {"video_frames": done.n_video_frames, "ratio_to_adding_nothing": ratio,
-               "large_scale_mean_error_mm": large_scale_error, "cross_section": {
-                   "wrinkle": wrinkle_name, "width_mm": float(fit.width[best]), "depth_mm": float(fit.depth[best]),
-                   "true_width_mm": true_w, "true_depth_mm": true_d},
-               "outside_wrinkle_mask_max_mm": outside, "timings": done.timings, "seconds": seconds}
-    lines = [f"wrinkle layer: {done.n_video_frames} video frames, 2 cameras, {scan.n_vertices} vertices",
-             f"  error over the wrinkles {ratio:.2f} of adding nothing (mocap frame {t}); "
-             f"outside them at most {outside:.3f} mm; {seconds:.0f} s with the footage rendered"]
-    return {"summary": summary, "lines": lines}
