@@ -245,6 +245,10 @@ def animate_scan(
                 ks=ks, kb=kb, unmarked_pieces=unmarked_pieces, backend=backend, precision=precision,
             )
             side, timings["condition_and_warp_s"] = marker_run.result()
+        # the second thread's imports finished before this thread does anything that may load a library (the
+        # per-frame product's numba loop loads cffi at its first call): on a small scan the set-up is done first
+        mesh_check, timings["check_mesh_s"] = mesh_check_run.result()
+        writers_import.result()
         prepared, ring, centres, warp, face_markers, chosen, head_motion = side
         if not np.array_equal(prepared.constrained_vertices, planned):
             solver = ThinShellSolver(
@@ -261,8 +265,6 @@ def animate_scan(
                           "is carried with it)", FacecapWarning, stacklevel=2)
         offsets = MarkerOffsets(scan.vertices, scan.faces, solver, marker_offset_mm=marker_offset_mm, ring=ring)
         timings["shell_setup_s"] = time.perf_counter() - t  # the shell and the offsets' part of it that needs it
-        mesh_check, timings["check_mesh_s"] = mesh_check_run.result()
-        writers_import.result()
         marker_displacements = face_markers - centres[None]
         loo = warp.leave_one_out_residuals()
 
