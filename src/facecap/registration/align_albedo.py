@@ -10,12 +10,13 @@ import numpy as np
 
 from ..mesh.factor_spd import Backend
 from ..errors import InputError
+from ..mesh.median_edge_length import median_edge_length
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import FloatArray
 from ..validate import as_positive
 from .cylindrical_map import cylindrical_map
-from .refine_registration import _flow_dis, _median_edge, _update, _visible
+from .refine_registration import _flow_dis, _update, _visible
 
 __all__ = ["AlbedoAlignment", "align_albedo", "DEFAULT_ALBEDO_ITERATIONS", "UNSEEN_ANCHOR"]
 
@@ -194,7 +195,7 @@ def align_albedo(
     texture_tree = igl.AABB()
     texture_tree.init(texture.vertices, texture.faces)
 
-    edge = _median_edge(Vw, Fw)
+    edge = median_edge_length(Vw, Fw)
     pix = 0.5 * edge if pixel_mm is None else as_positive(pixel_mm, name="pixel_mm")
     normals = igl.per_vertex_normals(Vw, Fw)
     forward = np.nansum(normals, axis=0)

@@ -14,6 +14,7 @@ from ..mesh.factor_spd import Backend, SpdFactor
 from ..errors import InputError
 from ..mesh.laplacian import laplace_operators
 from ..mesh.mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
+from ..mesh.median_edge_length import median_edge_length
 from ..mesh.vertex_normals import face_normals
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
@@ -291,7 +292,7 @@ def refine_registration(
     constraints = _validated_constraints(user_correspondences, K, n_full, back, D0)
 
     mean_mesh = D0.mean(axis=0)
-    edge = _median_edge(mean_mesh, Fw)
+    edge = median_edge_length(mean_mesh, Fw)
     if forward is None:
         normals = igl.per_vertex_normals(mean_mesh, Fw)
         forward = np.nansum(normals, axis=0)
@@ -446,11 +447,6 @@ def _region_labels(labels: Any, n: int, cmap: CylindricalMap, back: IntArray) ->
 
 
 # ----------------------------------------------------------------------------- steps
-
-
-def _median_edge(V: FloatArray, F: IntArray) -> float:
-    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    return float(np.median(np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)))
 
 
 def _closest_meshes(D: FloatArray, region_vertices: list[IntArray], M: int) -> IntArray:
