@@ -16,7 +16,8 @@ from ..structures import Mesh
 from ..typing import FloatArray
 from ..validate import as_positive
 from .cylindrical_map import cylindrical_map
-from .refine_registration import _flow_dis, _update, _visible
+from .optical_flow import optical_flow
+from .refine_registration import _update, _visible
 
 __all__ = ["AlbedoAlignment", "align_albedo", "DEFAULT_ALBEDO_ITERATIONS", "UNSEEN_ANCHOR"]
 
@@ -236,7 +237,7 @@ def align_albedo(
         valid[rows, cols] = seen
         src = _band(source, valid, fine_px, coarse_px)
         tgt = _band(target, valid, fine_px, coarse_px)
-        flow = _flow_dis(tgt, src)
+        flow = optical_flow(tgt, src, method="dis")
         delta = cmap.sample(flow, pixels, fill=0.0)
         strength = np.sqrt(cv2.GaussianBlur(src * src, (0, 0), max(2.0 * fine_px, 1.0)))
         confidence = np.clip(cmap.sample(strength, pixels, fill=0.0) / _STRONG_TEXTURE, floor, 1.0)

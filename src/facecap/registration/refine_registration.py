@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any, Literal, NamedTuple, Sequence
 
 import cv2
@@ -21,10 +22,9 @@ from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_count, as_faces, as_positive
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
+from .optical_flow import Flow, optical_flow
 
 __all__ = ["refine_registration", "Refinement"]
-
-Flow = Literal["farneback", "dis"]
 
 UserCorrespondence = tuple[int, int, int, Any]
 """``(scan_a, vertex_a, scan_b, point_b)``: see :func:`refine_registration`."""
@@ -338,7 +338,7 @@ def refine_registration(
     ])
 
     D = D0.copy()
-    flow_fn = _flow_farneback if flow == "farneback" else _flow_dis
+    flow_fn = partial(optical_flow, method=flow)
     for _ in range(n_iter):
         for i in range(K):
             V = D[i]
@@ -535,29 +535,6 @@ def _triangle_labels(labels: IntArray, F: IntArray) -> IntArray:
     """Region of each triangle: the label two or three of its corners share, else the first corner's."""
     a, b, c = labels[F[:, 0]], labels[F[:, 1]], labels[F[:, 2]]
     return np.where(b == c, b, a)
-
-
-def _to_image(x: FloatArray) -> FloatArray:
-    """Features scaled to about [-1, 1] mapped to 0..255 around 128 (the range both OpenCV flows expect)."""
-    return np.clip(128.0 + 127.0 * x, 0.0, 255.0)
-
-
-def _flow_farneback(prev: FloatArray, nxt: FloatArray) -> FloatArray:
-    """(h, w, 2) Farneback flow: prev(x) ~ nxt(x + flow(x))."""
-    a = np.ascontiguousarray(_to_image(prev), dtype=np.float32)
-    b = np.ascontiguousarray(_to_image(nxt), dtype=np.float32)
-    levels = int(max(1, min(4, np.floor(np.log2(max(min(a.shape), 2) / 8.0)))))
-    return cv2.calcOpticalFlowFarneback(a, b, None, 0.5, levels, 15, 3, 5, 1.1,
-                                        cv2.OPTFLOW_FARNEBACK_GAUSSIAN).astype(np.float64)
-
-
-def _flow_dis(prev: FloatArray, nxt: FloatArray) -> FloatArray:
-    """(h, w, 2) DIS flow (OpenCV, medium preset at full resolution): prev(x) ~ nxt(x + flow(x))."""
-    a = np.ascontiguousarray(np.rint(_to_image(prev)), dtype=np.uint8)
-    b = np.ascontiguousarray(np.rint(_to_image(nxt)), dtype=np.uint8)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    dis.setFinestScale(0)
-    return dis.calc(a, b, None).astype(np.float64)
 
 
 def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, alpha: float,
