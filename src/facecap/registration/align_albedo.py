@@ -17,7 +17,8 @@ from ..typing import FloatArray
 from ..validate import as_positive
 from .cylindrical_map import cylindrical_map
 from .optical_flow import optical_flow
-from .refine_registration import _update, _visible
+from .refine_registration import _update
+from .visible_in_raster import visible_in_raster
 
 __all__ = ["AlbedoAlignment", "align_albedo", "DEFAULT_ALBEDO_ITERATIONS", "UNSEEN_ANCHOR"]
 
@@ -245,7 +246,7 @@ def align_albedo(
         moved, ok = raster.surface_points(pixels + delta, V)
         dv = np.where(ok[:, None], moved - V, 0.0)
         limit = 3.0 * np.linalg.norm(delta, axis=1) / cmap.px_per_mm + 2.0 / cmap.px_per_mm
-        movable = _visible(raster, pixels) & ok & on_scan & (np.linalg.norm(dv, axis=1) <= limit)
+        movable = visible_in_raster(raster) & ok & on_scan & (np.linalg.norm(dv, axis=1) <= limit)
         dv[~movable] = 0.0
         # what the scan does not show stays where the large-scale registration put it (from the
         # markers), rather than being dragged along by the Laplacian of its moving neighbours

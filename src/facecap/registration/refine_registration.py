@@ -23,6 +23,7 @@ from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_count, as_faces, as_positive
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .optical_flow import Flow, optical_flow
+from .visible_in_raster import visible_in_raster
 
 __all__ = ["refine_registration", "Refinement"]
 
@@ -344,7 +345,7 @@ def refine_registration(
             V = D[i]
             pixels = cmap.project(V)
             raster = cmap.rasterise(Fw, pixels=pixels)
-            visible = _visible(raster, pixels)
+            visible = visible_in_raster(raster)
             offset, strength = _region_flow(raster, labels, G, i, nbrs[i], n_regions, overlap_px, scale, flow_fn,
                                             average)
             delta = cmap.sample(offset, pixels, fill=0.0)
@@ -475,18 +476,6 @@ def _misalignment(G: FloatArray, nbrs: IntArray, region_vertices: list[IntArray]
             count += diff.size
         out[i] = np.sqrt(total / max(count, 1))
     return out
-
-
-def _visible(raster: TriangleRaster, pixels: FloatArray) -> BoolArray:
-    """Vertices the image sees: one of their own triangles covers a pixel next to them."""
-    h, w = raster.face.shape
-    col = np.clip(np.rint(pixels[:, 0]).astype(np.int64), 0, w - 1)
-    row = np.clip(np.rint(pixels[:, 1]).astype(np.int64), 0, h - 1)
-    dr, dc = np.divmod(np.arange(9), 3)
-    cand = raster.face[np.clip(row[:, None] + dr - 1, 0, h - 1), np.clip(col[:, None] + dc - 1, 0, w - 1)]
-    corners = raster.F[np.where(cand >= 0, cand, 0)]                    # (n, 9, 3)
-    own = (corners == np.arange(pixels.shape[0])[:, None, None]).any(axis=2) & (cand >= 0)
-    return own.any(axis=1)
 
 
 def _region_flow(raster: TriangleRaster, labels: IntArray, G: FloatArray, i: int, nbrs_i: IntArray,
