@@ -20,7 +20,9 @@ In the order a user meets them:
   :func:`cylindrical_map` (``cylindrical_map.py``) unwrap. The parts it shares with
   :func:`align_albedo`: :func:`optical_flow` (``optical_flow.py``), OpenCV's dense flow
   between two feature images; :func:`visible_in_raster` (``visible_in_raster.py``), the
-  vertices an unwrap's image shows.
+  vertices an unwrap's image shows; :func:`regularised_update` (``regularised_update.py``),
+  eq. 11: a mesh moved by a displacement field, Laplacian-regularised, back onto its scan
+  without flipped triangles.
 - :func:`rigid_icp` (``rigid_icp.py``): rigid ICP of points onto a surface, as
   an :class:`IcpResult`; :func:`rigid_icp_to_surface` runs it on a
   :class:`ClosestPointSurface` built once; :func:`trimmed_inliers` picks a step's inliers and
@@ -46,6 +48,7 @@ from .fit_bases_to_markers import fit_bases_to_markers
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .optical_flow import optical_flow
 from .refine_registration import Refinement, refine_registration
+from .regularised_update import regularised_update
 from .visible_in_raster import visible_in_raster
 from .register_markers_to_scan import MIN_FACING_OUTWARD, MarkerRegistration, register_markers_to_scan, scan_winding
 from .register_scans import (
@@ -93,6 +96,7 @@ __all__ = [
     "Refinement",
     "optical_flow",
     "visible_in_raster",
+    "regularised_update",
     "cylindrical_map",
     "CylindricalMap",
     "TriangleRaster",

@@ -17,7 +17,7 @@ from ..typing import FloatArray
 from ..validate import as_positive
 from .cylindrical_map import cylindrical_map
 from .optical_flow import optical_flow
-from .refine_registration import _update
+from .regularised_update import regularised_update
 from .visible_in_raster import visible_in_raster
 
 __all__ = ["AlbedoAlignment", "align_albedo", "DEFAULT_ALBEDO_ITERATIONS", "UNSEEN_ANCHOR"]
@@ -210,7 +210,6 @@ def align_albedo(
 
     tree = igl.AABB()
     tree.init(scan.vertices, scan.faces)
-    scan_data = (scan.vertices, scan.faces)
     on_scan = np.sqrt(tree.squared_distance(scan.vertices, scan.faces, Vw)[0]) <= snap
 
     V = Vw.copy()
@@ -251,7 +250,7 @@ def align_albedo(
         # what the scan does not show stays where the large-scale registration put it (from the
         # markers), rather than being dragged along by the Laplacian of its moving neighbours
         confidence = np.where(movable, confidence, 0.0)
-        V = _update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), alpha, [], 0.0, tree, scan_data, on_scan,
-                    backend)
+        V = regularised_update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), scan, on_scan, alpha=alpha,
+                               scan_tree=tree, backend=backend)
     out = V[back]
     return AlbedoAlignment(vertices=out, moved_mm=np.linalg.norm(out - V0, axis=1), confidence=confidence[back])

@@ -8,21 +8,19 @@ from typing import Any, Literal, NamedTuple, Sequence
 import cv2
 import igl
 import numpy as np
-import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ..mesh.factor_spd import Backend, SpdFactor
+from ..mesh.factor_spd import Backend
 from ..errors import InputError
-from ..mesh.laplacian import laplace_operators
 from ..mesh.mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
 from ..mesh.median_edge_length import median_edge_length
-from ..mesh.vertex_normals import face_normals
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_count, as_faces, as_positive
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .optical_flow import Flow, optical_flow
+from .regularised_update import regularised_update
 from .visible_in_raster import visible_in_raster
 
 __all__ = ["refine_registration", "Refinement"]
@@ -33,9 +31,6 @@ UserCorrespondence = tuple[int, int, int, Any]
 _CURVATURE_NEIGHBOURS = 32  # k-NN candidates of each curvature fit
 _STRONG_FEATURE = 0.25  # local RMS feature (in units of its 99th percentile) that earns full confidence
 _STRENGTH_SIGMA_PX = 4.0  # Gaussian radius of that local RMS, pixels
-_MAX_BACKTRACKS = 1  # re-solves without the update around triangles it flipped
-_MAX_REVERTS = 50  # then rounds of putting the vertices of flipped triangles back
-_MAX_COT_WEIGHT = 10.0  # cotangent weights of good triangles are below 2
 
 
 class Refinement(NamedTuple):
@@ -359,8 +354,9 @@ def refine_registration(
             limit = 3.0 * np.linalg.norm(delta, axis=1) / cmap.px_per_mm + 2.0 / cmap.px_per_mm
             movable = visible & found & on_scan[i] & (np.linalg.norm(dv, axis=1) <= limit)
             dv[~movable] = 0.0
-            D[i] = _update(V, Fw, dv, confidence, alpha, constraints.get(i, []), constraint_weight, trees[i],
-                           scan_data[i], on_scan[i], backend)
+            D[i] = regularised_update(V, Fw, dv, confidence, scans[i], on_scan[i], alpha=alpha,
+                                      constraints=constraints.get(i, []), constraint_weight=constraint_weight,
+                                      scan_tree=trees[i], backend=backend)
             G[i] = features(i, D[i])
     after = _misalignment(G, nbrs, region_vertices)
 
@@ -524,68 +520,3 @@ def _triangle_labels(labels: IntArray, F: IntArray) -> IntArray:
     """Region of each triangle: the label two or three of its corners share, else the first corner's."""
     a, b, c = labels[F[:, 0]], labels[F[:, 1]], labels[F[:, 2]]
     return np.where(b == c, b, a)
-
-
-def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, alpha: float,
-            constraints: list[tuple[int, FloatArray]], weight: float, tree: Any, scan: tuple[FloatArray, IntArray],
-            on_scan: BoolArray, backend: Backend) -> FloatArray:
-    """Eq. 11 (confidence-weighted) plus user constraints, then back onto the scan, without flipping triangles."""
-    n = V.shape[0]
-    before = face_normals(V, F)
-    area = np.linalg.norm(before, axis=1)
-    sound = area > 1e-12 * max(float(np.median(area)), 1e-300)
-    L = _clamped_laplacian(V, F[sound], n)
-    LtL = (L.T @ L).tocsr()
-    diag = confidence.copy()
-    extra = np.zeros((n, 3))
-    for j, p in constraints:
-        diag[j] += weight
-        extra[j] += weight * p
-    A = (sp.diags(diag) + alpha * LtL).tocsr()
-    factor = SpdFactor(A, backend=backend)
-    base = alpha * (LtL @ V) + extra
-    step = np.ones(n)
-    vertex_faces = sp.csr_matrix((np.ones(F.size), (F.ravel(), np.repeat(np.arange(F.shape[0]), 3))),
-                                 shape=(n, F.shape[0]))
-    try:
-        for attempt in range(_MAX_BACKTRACKS + 1):
-            W = _snap(factor.solve(base + confidence[:, None] * (V + step[:, None] * dv)), tree, scan, on_scan)
-            flipped = sound & (np.einsum("ij,ij->i", before, face_normals(W, F)) < 0)
-            if not flipped.any():
-                return W
-            # drop the update around the flipped triangles (their vertices and two rings) and solve again
-            ring = vertex_faces[:, flipped].sum(axis=1).A1 > 0
-            for _ in range(2):
-                ring = (vertex_faces @ (vertex_faces[ring].sum(axis=0).A1 > 0)) > 0
-            step[ring] = 0.0
-    finally:
-        factor.free()
-    # still flipped: put those triangles' vertices (and one ring) back where they were, until none is
-    for _ in range(_MAX_REVERTS):
-        stuck = vertex_faces[:, flipped].sum(axis=1).A1 > 0
-        stuck = (vertex_faces @ (vertex_faces[stuck].sum(axis=0).A1 > 0)) > 0
-        W[stuck] = V[stuck]
-        touched = np.flatnonzero(vertex_faces[stuck].sum(axis=0).A1 > 0)
-        flipped = np.zeros(F.shape[0], dtype=bool)
-        flipped[touched] = sound[touched] & (np.einsum("ij,ij->i", before[touched], face_normals(W, F[touched])) < 0)
-        if not flipped.any():
-            return W
-    return V
-
-
-def _clamped_laplacian(V: FloatArray, F: IntArray, n: int) -> sp.csr_matrix:
-    """Cotangent Laplacian with edge weights clipped to +-_MAX_COT_WEIGHT (slivers would make eq. 11 singular)."""
-    if F.shape[0] == 0:
-        return sp.csr_matrix((n, n))
-    L = laplace_operators(V, F).L.tocoo()
-    off = L.row != L.col
-    w = np.clip(-L.data[off], -_MAX_COT_WEIGHT, _MAX_COT_WEIGHT)
-    rows, cols = L.row[off], L.col[off]
-    W = sp.csr_matrix((w, (rows, cols)), shape=(n, n))
-    return (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
-
-
-def _snap(W: FloatArray, tree: Any, scan: tuple[FloatArray, IntArray], on_scan: BoolArray) -> FloatArray:
-    """Vertices that were on the scan go to their closest scan point."""
-    _, _, cp = tree.squared_distance(scan[0], scan[1], W)
-    return np.where(on_scan[:, None], cp, W)
