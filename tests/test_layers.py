@@ -28,9 +28,6 @@ ARCHITECTURE = ROOT / "docs" / "architecture.md"
 KNOWN_DEBT = {
     # the anatomy's landmarks read the bundled sample (issue 29 item 3)
     "arrow anatomy -> synth",
-    # helpers shared by the modules of one subpackage, still private (issue 29 item 3: small public
-    # modules with their own tests)
-    "private facecap.registration.align_albedo <- facecap.registration.refine_registration",
 }
 
 

@@ -19,6 +19,8 @@ In the order a user meets them:
   per position across UV seams, as a :class:`WeldedMesh`.
 - :func:`laplace_operators` (``laplacian.py``): cotangent Laplacian and mixed
   Voronoi mass (Meyer et al. 2003), as :class:`LaplaceOperators`.
+- :func:`median_edge_length` (``median_edge_length.py``): the median length of the
+  triangles' sides, the scale a mesh is sampled at.
 - :func:`mean_curvature` (``mean_curvature.py``): per-vertex mean curvature
   from local quadric fits.
 - :class:`LocalFrameDetails`, :func:`local_frames` (``local_frame_details.py``):
@@ -41,6 +43,7 @@ from .factor_spd import SpdFactor, available_backends, load_backend
 from .laplacian import LaplaceOperators, laplace_operators
 from .local_frame_details import LocalFrameDetails, local_frames
 from .mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
+from .median_edge_length import median_edge_length
 from .nearest_on_polyline import nearest_on_polyline
 from .resample_polyline import ResampledPolyline, resample_polyline
 from .review_mesh import ReviewMesh, review_mesh
@@ -65,6 +68,7 @@ __all__ = [
     "local_frames",
     "mean_curvature",
     "DEFAULT_FEATURE_THRESHOLD",
+    "median_edge_length",
     "review_mesh",
     "ReviewMesh",
     "resample_polyline",

@@ -11,6 +11,7 @@ from scipy.spatial import cKDTree
 from ..errors import InputError
 from ..typing import FloatArray, IntArray
 from ..validate import as_faces, as_positive, as_vertices
+from .median_edge_length import median_edge_length
 
 __all__ = ["mean_curvature", "DEFAULT_FEATURE_THRESHOLD"]
 
@@ -128,8 +129,7 @@ def mean_curvature(
     if isinstance(max_neighbours, bool) or not isinstance(max_neighbours, (int, np.integer)) or max_neighbours < 6:
         raise InputError(f"max_neighbours: expected an integer >= 6, got {max_neighbours!r}")
     if radius_mm is None:
-        edges = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-        radius = 2.5 * float(np.median(np.linalg.norm(V[edges[:, 0]] - V[edges[:, 1]], axis=1)))
+        radius = 2.5 * median_edge_length(V, F)
         if not radius > 0:
             raise InputError("radius_mm: the mesh's median edge length is zero; give radius_mm explicitly")
     else:

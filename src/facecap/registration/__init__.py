@@ -17,7 +17,12 @@ In the order a user meets them:
   correspondence from texture), as an :class:`AlbedoAlignment`.
 - :func:`refine_registration` (``refine_registration.py``): the fine-scale
   optical-flow registration of section 6.2, as a :class:`Refinement`, on the
-  :func:`cylindrical_map` (``cylindrical_map.py``) unwrap.
+  :func:`cylindrical_map` (``cylindrical_map.py``) unwrap. The parts it shares with
+  :func:`align_albedo`: :func:`optical_flow` (``optical_flow.py``), OpenCV's dense flow
+  between two feature images; :func:`visible_in_raster` (``visible_in_raster.py``), the
+  vertices an unwrap's image shows; :func:`regularised_update` (``regularised_update.py``),
+  eq. 11: a mesh moved by a displacement field, Laplacian-regularised, back onto its scan
+  without flipped triangles.
 - :func:`rigid_icp` (``rigid_icp.py``): rigid ICP of points onto a surface, as
   an :class:`IcpResult`; :func:`rigid_icp_to_surface` runs it on a
   :class:`ClosestPointSurface` built once; :func:`trimmed_inliers` picks a step's inliers and
@@ -41,7 +46,10 @@ from __future__ import annotations
 from .align_albedo import DEFAULT_ALBEDO_ITERATIONS, UNSEEN_ANCHOR, AlbedoAlignment, align_albedo
 from .fit_bases_to_markers import fit_bases_to_markers
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
+from .optical_flow import optical_flow
 from .refine_registration import Refinement, refine_registration
+from .regularised_update import regularised_update
+from .visible_in_raster import visible_in_raster
 from .register_markers_to_scan import MIN_FACING_OUTWARD, MarkerRegistration, register_markers_to_scan, scan_winding
 from .register_scans import (
     DEFAULT_REST_WEIGHT,
@@ -86,6 +94,9 @@ __all__ = [
     "DEFAULT_CLOSEST_POINT_WEIGHTS",
     "refine_registration",
     "Refinement",
+    "optical_flow",
+    "visible_in_raster",
+    "regularised_update",
     "cylindrical_map",
     "CylindricalMap",
     "TriangleRaster",

@@ -10,12 +10,15 @@ import numpy as np
 
 from ..mesh.factor_spd import Backend
 from ..errors import InputError
+from ..mesh.median_edge_length import median_edge_length
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import FloatArray
 from ..validate import as_positive
 from .cylindrical_map import cylindrical_map
-from .refine_registration import _flow_dis, _median_edge, _update, _visible
+from .optical_flow import optical_flow
+from .regularised_update import regularised_update
+from .visible_in_raster import visible_in_raster
 
 __all__ = ["AlbedoAlignment", "align_albedo", "DEFAULT_ALBEDO_ITERATIONS", "UNSEEN_ANCHOR"]
 
@@ -194,7 +197,7 @@ def align_albedo(
     texture_tree = igl.AABB()
     texture_tree.init(texture.vertices, texture.faces)
 
-    edge = _median_edge(Vw, Fw)
+    edge = median_edge_length(Vw, Fw)
     pix = 0.5 * edge if pixel_mm is None else as_positive(pixel_mm, name="pixel_mm")
     normals = igl.per_vertex_normals(Vw, Fw)
     forward = np.nansum(normals, axis=0)
@@ -207,7 +210,6 @@ def align_albedo(
 
     tree = igl.AABB()
     tree.init(scan.vertices, scan.faces)
-    scan_data = (scan.vertices, scan.faces)
     on_scan = np.sqrt(tree.squared_distance(scan.vertices, scan.faces, Vw)[0]) <= snap
 
     V = Vw.copy()
@@ -235,7 +237,7 @@ def align_albedo(
         valid[rows, cols] = seen
         src = _band(source, valid, fine_px, coarse_px)
         tgt = _band(target, valid, fine_px, coarse_px)
-        flow = _flow_dis(tgt, src)
+        flow = optical_flow(tgt, src, method="dis")
         delta = cmap.sample(flow, pixels, fill=0.0)
         strength = np.sqrt(cv2.GaussianBlur(src * src, (0, 0), max(2.0 * fine_px, 1.0)))
         confidence = np.clip(cmap.sample(strength, pixels, fill=0.0) / _STRONG_TEXTURE, floor, 1.0)
@@ -243,12 +245,12 @@ def align_albedo(
         moved, ok = raster.surface_points(pixels + delta, V)
         dv = np.where(ok[:, None], moved - V, 0.0)
         limit = 3.0 * np.linalg.norm(delta, axis=1) / cmap.px_per_mm + 2.0 / cmap.px_per_mm
-        movable = _visible(raster, pixels) & ok & on_scan & (np.linalg.norm(dv, axis=1) <= limit)
+        movable = visible_in_raster(raster) & ok & on_scan & (np.linalg.norm(dv, axis=1) <= limit)
         dv[~movable] = 0.0
         # what the scan does not show stays where the large-scale registration put it (from the
         # markers), rather than being dragged along by the Laplacian of its moving neighbours
         confidence = np.where(movable, confidence, 0.0)
-        V = _update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), alpha, [], 0.0, tree, scan_data, on_scan,
-                    backend)
+        V = regularised_update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), scan, on_scan, alpha=alpha,
+                               scan_tree=tree, backend=backend)
     out = V[back]
     return AlbedoAlignment(vertices=out, moved_mm=np.linalg.norm(out - V0, axis=1), confidence=confidence[back])

@@ -2,28 +2,28 @@
 
 from __future__ import annotations
 
+from functools import partial
 from typing import Any, Literal, NamedTuple, Sequence
 
 import cv2
 import igl
 import numpy as np
-import scipy.sparse as sp
 from scipy.spatial import cKDTree
 
-from ..mesh.factor_spd import Backend, SpdFactor
+from ..mesh.factor_spd import Backend
 from ..errors import InputError
-from ..mesh.laplacian import laplace_operators
 from ..mesh.mean_curvature import DEFAULT_FEATURE_THRESHOLD, mean_curvature
-from ..mesh.vertex_normals import face_normals
+from ..mesh.median_edge_length import median_edge_length
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_count, as_faces, as_positive
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
+from .optical_flow import Flow, optical_flow
+from .regularised_update import regularised_update
+from .visible_in_raster import visible_in_raster
 
 __all__ = ["refine_registration", "Refinement"]
-
-Flow = Literal["farneback", "dis"]
 
 UserCorrespondence = tuple[int, int, int, Any]
 """``(scan_a, vertex_a, scan_b, point_b)``: see :func:`refine_registration`."""
@@ -31,9 +31,6 @@ UserCorrespondence = tuple[int, int, int, Any]
 _CURVATURE_NEIGHBOURS = 32  # k-NN candidates of each curvature fit
 _STRONG_FEATURE = 0.25  # local RMS feature (in units of its 99th percentile) that earns full confidence
 _STRENGTH_SIGMA_PX = 4.0  # Gaussian radius of that local RMS, pixels
-_MAX_BACKTRACKS = 1  # re-solves without the update around triangles it flipped
-_MAX_REVERTS = 50  # then rounds of putting the vertices of flipped triangles back
-_MAX_COT_WEIGHT = 10.0  # cotangent weights of good triangles are below 2
 
 
 class Refinement(NamedTuple):
@@ -291,7 +288,7 @@ def refine_registration(
     constraints = _validated_constraints(user_correspondences, K, n_full, back, D0)
 
     mean_mesh = D0.mean(axis=0)
-    edge = _median_edge(mean_mesh, Fw)
+    edge = median_edge_length(mean_mesh, Fw)
     if forward is None:
         normals = igl.per_vertex_normals(mean_mesh, Fw)
         forward = np.nansum(normals, axis=0)
@@ -337,13 +334,13 @@ def refine_registration(
     ])
 
     D = D0.copy()
-    flow_fn = _flow_farneback if flow == "farneback" else _flow_dis
+    flow_fn = partial(optical_flow, method=flow)
     for _ in range(n_iter):
         for i in range(K):
             V = D[i]
             pixels = cmap.project(V)
             raster = cmap.rasterise(Fw, pixels=pixels)
-            visible = _visible(raster, pixels)
+            visible = visible_in_raster(raster)
             offset, strength = _region_flow(raster, labels, G, i, nbrs[i], n_regions, overlap_px, scale, flow_fn,
                                             average)
             delta = cmap.sample(offset, pixels, fill=0.0)
@@ -357,8 +354,9 @@ def refine_registration(
             limit = 3.0 * np.linalg.norm(delta, axis=1) / cmap.px_per_mm + 2.0 / cmap.px_per_mm
             movable = visible & found & on_scan[i] & (np.linalg.norm(dv, axis=1) <= limit)
             dv[~movable] = 0.0
-            D[i] = _update(V, Fw, dv, confidence, alpha, constraints.get(i, []), constraint_weight, trees[i],
-                           scan_data[i], on_scan[i], backend)
+            D[i] = regularised_update(V, Fw, dv, confidence, scans[i], on_scan[i], alpha=alpha,
+                                      constraints=constraints.get(i, []), constraint_weight=constraint_weight,
+                                      scan_tree=trees[i], backend=backend)
             G[i] = features(i, D[i])
     after = _misalignment(G, nbrs, region_vertices)
 
@@ -448,11 +446,6 @@ def _region_labels(labels: Any, n: int, cmap: CylindricalMap, back: IntArray) ->
 # ----------------------------------------------------------------------------- steps
 
 
-def _median_edge(V: FloatArray, F: IntArray) -> float:
-    e = np.concatenate([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]])
-    return float(np.median(np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)))
-
-
 def _closest_meshes(D: FloatArray, region_vertices: list[IntArray], M: int) -> IntArray:
     """(K, R, M): per mesh and region, the M other meshes with the smallest mean vertex distance."""
     K = D.shape[0]
@@ -479,18 +472,6 @@ def _misalignment(G: FloatArray, nbrs: IntArray, region_vertices: list[IntArray]
             count += diff.size
         out[i] = np.sqrt(total / max(count, 1))
     return out
-
-
-def _visible(raster: TriangleRaster, pixels: FloatArray) -> BoolArray:
-    """Vertices the image sees: one of their own triangles covers a pixel next to them."""
-    h, w = raster.face.shape
-    col = np.clip(np.rint(pixels[:, 0]).astype(np.int64), 0, w - 1)
-    row = np.clip(np.rint(pixels[:, 1]).astype(np.int64), 0, h - 1)
-    dr, dc = np.divmod(np.arange(9), 3)
-    cand = raster.face[np.clip(row[:, None] + dr - 1, 0, h - 1), np.clip(col[:, None] + dc - 1, 0, w - 1)]
-    corners = raster.F[np.where(cand >= 0, cand, 0)]                    # (n, 9, 3)
-    own = (corners == np.arange(pixels.shape[0])[:, None, None]).any(axis=2) & (cand >= 0)
-    return own.any(axis=1)
 
 
 def _region_flow(raster: TriangleRaster, labels: IntArray, G: FloatArray, i: int, nbrs_i: IntArray,
@@ -539,91 +520,3 @@ def _triangle_labels(labels: IntArray, F: IntArray) -> IntArray:
     """Region of each triangle: the label two or three of its corners share, else the first corner's."""
     a, b, c = labels[F[:, 0]], labels[F[:, 1]], labels[F[:, 2]]
     return np.where(b == c, b, a)
-
-
-def _to_image(x: FloatArray) -> FloatArray:
-    """Features scaled to about [-1, 1] mapped to 0..255 around 128 (the range both OpenCV flows expect)."""
-    return np.clip(128.0 + 127.0 * x, 0.0, 255.0)
-
-
-def _flow_farneback(prev: FloatArray, nxt: FloatArray) -> FloatArray:
-    """(h, w, 2) Farneback flow: prev(x) ~ nxt(x + flow(x))."""
-    a = np.ascontiguousarray(_to_image(prev), dtype=np.float32)
-    b = np.ascontiguousarray(_to_image(nxt), dtype=np.float32)
-    levels = int(max(1, min(4, np.floor(np.log2(max(min(a.shape), 2) / 8.0)))))
-    return cv2.calcOpticalFlowFarneback(a, b, None, 0.5, levels, 15, 3, 5, 1.1,
-                                        cv2.OPTFLOW_FARNEBACK_GAUSSIAN).astype(np.float64)
-
-
-def _flow_dis(prev: FloatArray, nxt: FloatArray) -> FloatArray:
-    """(h, w, 2) DIS flow (OpenCV, medium preset at full resolution): prev(x) ~ nxt(x + flow(x))."""
-    a = np.ascontiguousarray(np.rint(_to_image(prev)), dtype=np.uint8)
-    b = np.ascontiguousarray(np.rint(_to_image(nxt)), dtype=np.uint8)
-    dis = cv2.DISOpticalFlow_create(cv2.DISOPTICAL_FLOW_PRESET_MEDIUM)
-    dis.setFinestScale(0)
-    return dis.calc(a, b, None).astype(np.float64)
-
-
-def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, alpha: float,
-            constraints: list[tuple[int, FloatArray]], weight: float, tree: Any, scan: tuple[FloatArray, IntArray],
-            on_scan: BoolArray, backend: Backend) -> FloatArray:
-    """Eq. 11 (confidence-weighted) plus user constraints, then back onto the scan, without flipping triangles."""
-    n = V.shape[0]
-    before = face_normals(V, F)
-    area = np.linalg.norm(before, axis=1)
-    sound = area > 1e-12 * max(float(np.median(area)), 1e-300)
-    L = _clamped_laplacian(V, F[sound], n)
-    LtL = (L.T @ L).tocsr()
-    diag = confidence.copy()
-    extra = np.zeros((n, 3))
-    for j, p in constraints:
-        diag[j] += weight
-        extra[j] += weight * p
-    A = (sp.diags(diag) + alpha * LtL).tocsr()
-    factor = SpdFactor(A, backend=backend)
-    base = alpha * (LtL @ V) + extra
-    step = np.ones(n)
-    vertex_faces = sp.csr_matrix((np.ones(F.size), (F.ravel(), np.repeat(np.arange(F.shape[0]), 3))),
-                                 shape=(n, F.shape[0]))
-    try:
-        for attempt in range(_MAX_BACKTRACKS + 1):
-            W = _snap(factor.solve(base + confidence[:, None] * (V + step[:, None] * dv)), tree, scan, on_scan)
-            flipped = sound & (np.einsum("ij,ij->i", before, face_normals(W, F)) < 0)
-            if not flipped.any():
-                return W
-            # drop the update around the flipped triangles (their vertices and two rings) and solve again
-            ring = vertex_faces[:, flipped].sum(axis=1).A1 > 0
-            for _ in range(2):
-                ring = (vertex_faces @ (vertex_faces[ring].sum(axis=0).A1 > 0)) > 0
-            step[ring] = 0.0
-    finally:
-        factor.free()
-    # still flipped: put those triangles' vertices (and one ring) back where they were, until none is
-    for _ in range(_MAX_REVERTS):
-        stuck = vertex_faces[:, flipped].sum(axis=1).A1 > 0
-        stuck = (vertex_faces @ (vertex_faces[stuck].sum(axis=0).A1 > 0)) > 0
-        W[stuck] = V[stuck]
-        touched = np.flatnonzero(vertex_faces[stuck].sum(axis=0).A1 > 0)
-        flipped = np.zeros(F.shape[0], dtype=bool)
-        flipped[touched] = sound[touched] & (np.einsum("ij,ij->i", before[touched], face_normals(W, F[touched])) < 0)
-        if not flipped.any():
-            return W
-    return V
-
-
-def _clamped_laplacian(V: FloatArray, F: IntArray, n: int) -> sp.csr_matrix:
-    """Cotangent Laplacian with edge weights clipped to +-_MAX_COT_WEIGHT (slivers would make eq. 11 singular)."""
-    if F.shape[0] == 0:
-        return sp.csr_matrix((n, n))
-    L = laplace_operators(V, F).L.tocoo()
-    off = L.row != L.col
-    w = np.clip(-L.data[off], -_MAX_COT_WEIGHT, _MAX_COT_WEIGHT)
-    rows, cols = L.row[off], L.col[off]
-    W = sp.csr_matrix((w, (rows, cols)), shape=(n, n))
-    return (sp.diags(np.asarray(W.sum(axis=1)).ravel()) - W).tocsr()
-
-
-def _snap(W: FloatArray, tree: Any, scan: tuple[FloatArray, IntArray], on_scan: BoolArray) -> FloatArray:
-    """Vertices that were on the scan go to their closest scan point."""
-    _, _, cp = tree.squared_distance(scan[0], scan[1], W)
-    return np.where(on_scan[:, None], cp, W)
