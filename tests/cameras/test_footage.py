@@ -1,4 +1,4 @@
-"""Footage: image sequences and video files, written and read back exactly; random access; bad input."""
+"""open_footage: image sequences by folder, pattern or glob, videos (H.264, MJPEG from PyAV); random access; bad input."""
 
 from __future__ import annotations
 
@@ -8,31 +8,9 @@ import av
 import numpy as np
 import pytest
 
-from facecap.cameras import SEQUENCE_FILE, open_footage, write_image, write_image_sequence, write_video
+from facecap.cameras import open_footage, write_image, write_image_sequence, write_video
 from facecap.errors import FileFormatError, InputError
-
-RNG = np.random.default_rng(11)
-# odd sizes on purpose: some video writers silently pad to a multiple of 16
-FRAMES_8 = RNG.integers(0, 256, (40, 37, 61, 3), dtype=np.uint8)
-FRAMES_16 = RNG.integers(0, 65536, (12, 37, 61, 3), dtype=np.uint16)
-
-
-@pytest.mark.parametrize(
-    ("suffix", "frames"),
-    [(".png", FRAMES_8[:6]), (".png", FRAMES_16[:6]), (".tif", FRAMES_16[:4]),
-     (".exr", RNG.random((5, 37, 61, 3), dtype=np.float32)), (".png", FRAMES_16[:5, :, :, 0])],
-    ids=["png8", "png16", "tif16", "exr", "png16-grey"],
-)
-def test_image_sequence_round_trip_exact(tmp_path: Path, suffix: str, frames: np.ndarray) -> None:
-    folder = tmp_path / "cam0"
-    write_image_sequence(folder, frames, suffix=suffix)
-    assert (folder / SEQUENCE_FILE).is_file()
-    with open_footage(folder) as footage:
-        assert (footage.kind, footage.n_frames, footage.width, footage.height) == ("images", len(frames), 61, 37)
-        assert footage.dtype == frames.dtype and footage.rate_hz is None
-        np.testing.assert_array_equal(np.stack(list(footage)), frames)
-        np.testing.assert_array_equal(footage.frame(-1), frames[-1])
-    assert [p.name for p in tmp_path.iterdir()] == ["cam0"]
+from footage_frames import FRAMES_8
 
 
 def test_sequence_by_pattern_glob_and_numbering_from_one(tmp_path: Path) -> None:
@@ -53,29 +31,6 @@ def test_numbers_sort_numerically_not_as_text(tmp_path: Path) -> None:
     np.testing.assert_array_equal(np.stack(list(footage)), FRAMES_8[8:12])
 
 
-@pytest.mark.parametrize(
-    ("suffix", "frames"),
-    [(".mkv", FRAMES_8), (".mkv", FRAMES_16), (".mkv", FRAMES_8[:10, :, :, 0]), (".mov", FRAMES_8[:10]),
-     (".mov", FRAMES_16[:6]), (".avi", FRAMES_8[:10])],
-    ids=["mkv-ffv1-8", "mkv-ffv1-16", "mkv-ffv1-grey", "mov-png-8", "mov-png-16", "avi-ffv1"],
-)
-def test_lossless_video_round_trip_exact(tmp_path: Path, suffix: str, frames: np.ndarray) -> None:
-    path = tmp_path / f"cam0{suffix}"
-    write_video(path, frames, rate_hz=12.5)
-    with av.open(str(path)) as container:  # FFmpeg itself sees the stream we meant
-        stream = container.streams.video[0]
-        assert (stream.codec_context.width, stream.codec_context.height) == (61, 37)
-        assert stream.average_rate == 12.5
-    with open_footage(path) as footage:
-        assert (footage.kind, footage.n_frames, footage.width, footage.height) == ("video", len(frames), 61, 37)
-        assert footage.rate_hz == 12.5 and footage.dtype == frames.dtype
-        decoded = np.stack(list(footage))
-        np.testing.assert_array_equal(decoded, frames)
-        for i in (len(frames) - 1, 3, 0, len(frames) // 2, 1):  # backward and forward jumps
-            np.testing.assert_array_equal(footage.frame(i), frames[i])
-    assert [p.name for p in tmp_path.iterdir()] == [path.name]
-
-
 def test_mp4_h264_is_read_at_its_true_size(tmp_path: Path) -> None:
     u, v = np.meshgrid(np.arange(62), np.arange(38))
     frames = np.stack([np.stack([u * 3 + t, v * 5, (u + v + 2 * t) % 256], -1) for t in range(30)]).astype(np.uint8)
@@ -88,20 +43,7 @@ def test_mp4_h264_is_read_at_its_true_size(tmp_path: Path) -> None:
         np.testing.assert_array_equal(footage.frame(2), decoded[2])
 
 
-def test_bad_footage_and_writes_leave_nothing(tmp_path: Path) -> None:
-    with pytest.raises(InputError, match="every frame must match"):
-        write_image_sequence(tmp_path / "seq", [FRAMES_8[0], FRAMES_8[1, :10]])
-    with pytest.raises(InputError, match="every frame must match"):
-        write_video(tmp_path / "v.mkv", [FRAMES_8[0], FRAMES_16[0]], rate_hz=12.5)
-    with pytest.raises(InputError, match="no frame"):
-        write_video(tmp_path / "v.mkv", [], rate_hz=12.5)
-    with pytest.raises(InputError, match="uint8 or uint16"):
-        write_video(tmp_path / "v.mkv", FRAMES_8.astype(np.float32), rate_hz=12.5)
-    with pytest.raises(InputError, match="even width and height"):
-        write_video(tmp_path / "v.mp4", FRAMES_8[:2], rate_hz=12.5)
-    with pytest.raises(InputError, match="cannot hold 16-bit"):
-        write_video(tmp_path / "v.mp4", FRAMES_16[:2, :36, :60], rate_hz=12.5)
-    assert list(tmp_path.iterdir()) == []
+def test_bad_footage(tmp_path: Path) -> None:
     folder = tmp_path / "gap"
     folder.mkdir()
     for i in (0, 1, 3):
@@ -125,22 +67,6 @@ def test_bad_footage_and_writes_leave_nothing(tmp_path: Path) -> None:
         footage.frame(1)
     with pytest.raises(InputError, match="out of range"):
         footage.frame(2)
-
-
-def test_sequence_folder_replaces_an_earlier_sequence_but_not_other_files(tmp_path: Path) -> None:
-    folder = tmp_path / "cam0"
-    write_image_sequence(folder, FRAMES_8[:3])
-    write_image_sequence(folder, FRAMES_8[3:5])  # an earlier sequence is replaced whole
-    with open_footage(folder) as footage:
-        assert footage.n_frames == 2
-        np.testing.assert_array_equal(footage.frame(1), FRAMES_8[4])
-    other = tmp_path / "photos"
-    other.mkdir()
-    (other / "holiday.jpg").write_bytes(b"keep me")
-    with pytest.raises(InputError, match="never replaces it"):
-        write_image_sequence(other, FRAMES_8[:2])
-    assert [p.name for p in other.iterdir()] == ["holiday.jpg"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["cam0", "photos"]
 
 
 def test_check_camera_names_both_sizes(tmp_path: Path) -> None:

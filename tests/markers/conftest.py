@@ -1,4 +1,5 @@
-"""Synthetic marker takes with known truth, shared by the marker-conditioning tests."""
+"""Synthetic marker takes with known truth, shared by the marker-conditioning tests, and one generated case with its
+scan stored in each length unit, shared by the scan-unit and take-unit checks."""
 
 from __future__ import annotations
 
@@ -83,3 +84,20 @@ def make_take(
 def synthetic_take() -> Callable[..., SyntheticTake]:
     """Factory fixture: ``synthetic_take(**options)`` returns a :class:`SyntheticTake`."""
     return make_take
+
+
+@pytest.fixture(scope="session")
+def case():
+    """A short synthetic take with its scan (shared by the scan-unit and take-unit tests; tests must not change it)."""
+    from facecap.synth import generate_performance
+
+    return generate_performance(n_frames=20, seed=0)
+
+
+@pytest.fixture(scope="session")
+def written(case, tmp_path_factory):
+    """The same case with its scan stored in each unit."""
+    from facecap.synth import write_synthetic_case
+
+    root = tmp_path_factory.mktemp("units")
+    return {unit: write_synthetic_case(case, root / unit, scan_unit=unit) for unit in ("mm", "cm", "m", "in")}

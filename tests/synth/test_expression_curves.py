@@ -78,3 +78,37 @@ def test_bad_arguments_are_clear_errors(kwargs, match):
     n, nm = args.pop("n_frames"), args.pop("names")
     with pytest.raises(InputError, match=match):
         smooth_expression_curves(n, nm, **args)
+
+
+def test_rapid_asymmetric_curves_have_short_onsets_and_different_sides():
+    names = load_ict_sample().expression_names
+    rate = 240.0
+    kw = dict(rate=rate, seed=8, ramp_in_s=(0.06, 0.15), ramp_out_s=(0.06, 0.15))
+    sym = smooth_expression_curves(2400, names, **kw)
+    asym = smooth_expression_curves(2400, names, **kw, asymmetry=0.4, max_timing_offset_s=0.08)
+    # onsets: a rise from 10 % to 90 % of a smile peak takes at most 150 ms
+    smile = sym[:, names.index("mouthSmile_L")]
+    d = np.diff(smile)
+    peaks = np.flatnonzero((d[:-1] > 0) & (d[1:] <= 0) & (smile[1:-1] > 0.3)) + 1
+    assert peaks.size >= 1
+    for p in peaks:
+        lo = np.flatnonzero(smile[:p] < 0.1 * smile[p])[-1]
+        assert (p - lo) / rate <= 0.15 + 1 / rate
+    assert np.abs(d).max() * rate > 5.0  # weight per second: far faster than the default ramps
+    # symmetric without the option; L and R differ in size and timing with it
+    # (pairs the presets drive symmetrically: side_smirk moves mouthSmile_L and cheekSquint_L alone)
+    pairs = [(n, n[:-2] + "_R") for n in ("browDown_L", "browInnerUp_L", "browOuterUp_L", "eyeWide_L",
+                                           "eyeSquint_L", "noseSneer_L", "mouthFrown_L", "mouthPress_L",
+                                           "mouthStretch_L", "mouthUpperUp_L", "cheekPuff_L")]
+    assert max(np.abs(sym[:, names.index(l)] - sym[:, names.index(r)]).max() for l, r in pairs) < 1e-12
+    gaps = [np.abs(asym[:, names.index(l)] - asym[:, names.index(r)]).max() for l, r in pairs]
+    assert max(gaps) > 0.2
+    np.testing.assert_array_equal(asym[:, names.index("eyeBlink_L")], asym[:, names.index("eyeBlink_R")])
+    # the defaults are the old curves, draw for draw: the side options draw from their own stream
+    np.testing.assert_array_equal(smooth_expression_curves(300, names, seed=8),
+                                  smooth_expression_curves(300, names, seed=8, asymmetry=0.0))
+    assert asym.min() >= 0 and asym.max() <= 1 and np.all(asym[0] == 0)
+    with pytest.raises(InputError, match="asymmetry"):
+        smooth_expression_curves(10, names, asymmetry=1.0)
+    with pytest.raises(InputError, match="ramp_in_s"):
+        smooth_expression_curves(10, names, ramp_in_s=(0.2, 0.1))

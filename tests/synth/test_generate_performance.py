@@ -7,9 +7,13 @@ from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError
 from facecap.mesh.vertex_normals import vertex_normals
-from facecap.synth.generate_performance import SyntheticCase, generate_performance
+from facecap.synth.expression_curves import smooth_expression_curves
+from facecap.synth.generate_performance import HEAD_PIVOTS_MM, TURN_DURATION_S, SyntheticCase, generate_performance
 from facecap.synth.ict_sample import load_ict_sample
 from facecap.synth.marker_layout import animface_marker_map, boundary_vertices
+
+
+RATE = 60.0  # the generator's default rate, Hz
 
 
 @pytest.fixture(scope="module")
@@ -193,3 +197,92 @@ def test_reproducible_seed_dependent_and_explicit_curves():
 def test_bad_options_are_clear_errors(kwargs, match):
     with pytest.raises(InputError, match=match):
         generate_performance(**kwargs)
+
+
+# The harder options: neck pivot, quick head turns, no head band, 40-120 markers, random identities,
+# named curve generators.
+
+
+@pytest.fixture(scope="module")
+def neck_turns():
+    return generate_performance(n_frames=600, seed=21, head_pivot="neck", head_motion="turns",
+                                head_rotation_deg=8.0, head_translation_mm=0.0, headband_markers=0,
+                                n_markers=40, curves="speech")
+
+
+def test_neck_pivot_is_fixed_by_every_head_pose_and_undoing_the_pose_restores_the_markers(neck_turns):
+    c = neck_turns
+    s = load_ict_sample()
+    pivot = c.scan.vertices[s.landmarks[8]] + np.array(HEAD_PIVOTS_MM["neck"])
+    pivot[0] = c.scan.vertices[:, 0].mean()
+    moved = _apply(c.head_pose, np.broadcast_to(pivot, (c.head_pose.shape[0], 1, 3)))
+    np.testing.assert_allclose(moved[:, 0], np.broadcast_to(pivot, (600, 3)), atol=1e-9)  # no translation asked
+    # the pivot is 9 cm below and 8 cm behind the chin
+    assert pivot[1] - c.scan.vertices[s.landmarks[8], 1] == pytest.approx(-90.0)
+    # undoing the head pose and the mocap frame gives markers that only follow the expression
+    P = _apply(np.linalg.inv(c.mocap_from_scan[None] @ c.head_pose), c.noiseless_markers)
+    skin = c.truth_vertices[:, c.marker_vertices].astype(np.float64)
+    assert np.linalg.norm(P - skin, axis=2).max() == pytest.approx(1.5, abs=1e-4)  # the marker offset
+    # a rotation about the low pivot swings the face sideways: the nose tip moves many mm
+    nose = c.scan.vertices[s.landmarks[30]]
+    swing = np.linalg.norm(_apply(c.head_pose, np.broadcast_to(nose, (600, 1, 3)))[:, 0] - nose, axis=1)
+    assert swing.max() > 10.0
+
+
+def test_turns_reach_the_peak_hold_and_turn_quickly(neck_turns):
+    c = neck_turns
+    R = Rotation.from_matrix(c.head_pose[:, :3, :3])
+    angle = np.degrees(np.linalg.norm(R.as_rotvec(), axis=1))
+    assert angle[0] == 0.0 and angle.max() == pytest.approx(8.0, rel=1e-6)  # 600 frames = 10 s: the full amplitude
+    speed = np.degrees((R[1:] * R[:-1].inv()).magnitude()) * RATE  # deg/s
+    moving = speed > 1e-6
+    # holds: most of the take the head is still
+    assert (~moving).mean() > 0.4
+    # each turn lasts at most TURN_DURATION_S[1] and is quick (peak speed many deg/s)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], moving.astype(int), [0]])))
+    durations = (edges[1::2] - edges[::2]) / RATE
+    assert durations.size >= 3 and durations.max() <= TURN_DURATION_S[1] + 2 / RATE
+    assert speed.max() > 8.0
+
+
+def test_no_head_band_and_forty_markers(neck_turns):
+    c = neck_turns
+    assert c.headband_labels == () and c.headband_points.shape == (0, 3)
+    assert c.n_face_markers == 40 and c.markers.positions.shape == (600, 40, 3)
+    assert np.unique(c.marker_vertices).size == 40
+
+
+def test_one_hundred_twenty_markers_and_random_identities_give_valid_faces():
+    s = load_ict_sample()
+    generic = s.mesh.vertices
+    F = s.mesh.faces
+    n0 = np.cross(generic[F[:, 1]] - generic[F[:, 0]], generic[F[:, 2]] - generic[F[:, 0]])
+    rng = np.random.default_rng(5)
+    for sd in (0.5, 1.0):
+        identity = rng.normal(scale=sd, size=8)
+        c = generate_performance(n_frames=60, seed=6, identity=identity, n_markers=120, headband_markers=0,
+                                 noise_mm=0.0, gap_fraction=0.0)
+        V = c.scan.vertices
+        n1 = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+        area = 0.5 * np.linalg.norm(n1, axis=1)
+        # no collapsed triangle and none flipped (the generic face has slivers of 0.005 mm^2 at the
+        # mouth corners, quads with two coincident corners, which any identity may tip over: skip those)
+        sound = 0.5 * np.linalg.norm(n0, axis=1) > 0.05
+        assert area.min() > 0 and np.all(np.sum(n0 * n1, axis=1)[sound] > 0)
+        assert 100 < np.ptp(V[:, 1]) < 300
+        assert c.n_face_markers == 120 and np.isfinite(c.markers.positions).all()
+
+
+def test_named_curves_match_their_generators():
+    names = load_ict_sample().expression_names
+    c = generate_performance(n_frames=120, seed=3, curves="smooth", n_markers=20)
+    np.testing.assert_array_equal(c.weights, smooth_expression_curves(120, names, rate=RATE, seed=3))
+    for kind in ("speech", "real", "rapid_asymmetric"):
+        W = generate_performance(n_frames=120, seed=3, curves=kind, n_markers=20).weights
+        assert W.shape == (120, 53) and np.all(W[0] == 0) and 0 <= W.min() and W.max() <= 1
+    with pytest.raises(InputError, match="curves"):
+        generate_performance(n_frames=10, curves="mumble", n_markers=5)
+    with pytest.raises(InputError, match="head_pivot"):
+        generate_performance(n_frames=10, head_pivot="hip", n_markers=5)
+    with pytest.raises(InputError, match="head_motion"):
+        generate_performance(n_frames=10, head_motion="spin", n_markers=5)

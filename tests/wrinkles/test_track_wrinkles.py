@@ -18,28 +18,15 @@ from facecap.errors import InputError
 from facecap.wrinkles import (
     WrinkleTracker,
     WrinkleTrackingWarning,
-    classify_paint,
-    mask_from_color_picks,
     separate_paint_colors,
     track_wrinkles,
     train_paint_classifier,
 )
 
-from wrinkle_stripe_images import BLUE, GREEN, centre_curve, polyline_distance, render_stripes
+from wrinkle_stripe_images import BLUE, centre_curve, polyline_distance, render_stripes, two_stripes as _two_stripes
 
 
 # ---------------------------------------------------------------- drawn stripes, known centre curves
-
-def _two_stripes(shift: tuple[float, float] = (0.0, 0.0), seed: int = 0) -> tuple[np.ndarray, np.ndarray, list]:
-    du, dv = shift
-    curves = [centre_curve(40.0 + du, 260.0 + du, 60.0 + dv, 0.15, 0.0008),  # blue, upper
-              centre_curve(60.0 + du, 250.0 + du, 150.0 + dv, -0.1, 0.001),  # blue, lower: same paint
-              centre_curve(80.0 + du, 200.0 + du, 105.0 + dv, 0.0, 0.0005)]  # green, between
-    image, mask = render_stripes((320, 240), [(curves[0], 6.0, BLUE), (curves[1], 6.0, BLUE), (curves[2], 5.0, GREEN)],
-                                 seed=seed)
-    labels = np.where(mask == 2, 1, np.where(mask == 3, 2, mask))  # paint labels: blue 1, green 2
-    return image, labels, curves
-
 
 def test_moving_stripes_are_tracked_to_their_centres_keeping_identity() -> None:
     image, labels, _ = _two_stripes()
@@ -61,26 +48,6 @@ def test_moving_stripes_are_tracked_to_their_centres_keeping_identity() -> None:
             assert not w.at_border
 
 
-def test_the_table_agrees_with_the_svms_themselves() -> None:
-    """The tabulated decision (64^3 bins) labels the pixels as the SVMs do, and matches their decision values."""
-    image, labels, _ = _two_stripes()
-    classifier = train_paint_classifier(image, labels)
-    moved, _, _ = _two_stripes((5.0, 3.0), seed=7)
-    direct = classify_paint(classifier, moved, use_table=False)
-    table = classify_paint(classifier, moved)
-    assert np.mean(direct == table) > 0.999
-    rgb = moved.reshape(-1, 3)[::7] / 255.0
-    exact, tabulated = classifier.decision(rgb), classifier.table_decision(rgb)
-    confident = np.abs(exact) > 0.5
-    assert np.all(np.sign(exact[confident]) == np.sign(tabulated[confident]))
-    # and the labels are right: the truth of the moved frame, away from its anti-aliased edges
-    from scipy.ndimage import maximum_filter, minimum_filter
-
-    _, truth, _ = _two_stripes((5.0, 3.0), seed=7)
-    clear = maximum_filter(truth, size=5) == minimum_filter(truth, size=5)
-    assert np.mean(table[clear] == truth[clear]) > 0.999
-
-
 def test_a_wrinkle_leaving_the_image_is_flagged() -> None:
     image, labels, _ = _two_stripes()
     tracker = WrinkleTracker(train_paint_classifier(image, labels), min_area_px=20)
@@ -99,38 +66,6 @@ def test_a_wrinkle_leaving_the_image_is_flagged() -> None:
     image_gone = np.broadcast_to(image[0, 0], image.shape).copy()  # every stripe gone
     with pytest.warns(WrinkleTrackingWarning, match="was not found"):
         assert tracker.track(image_gone) == []
-
-
-def test_colour_picks_make_the_mask_and_train_as_well() -> None:
-    """One picked pixel per paint: the mask covers the stripes' interiors, and its classifier labels a new frame."""
-    from scipy.ndimage import maximum_filter, minimum_filter
-
-    image, labels, curves = _two_stripes()
-    picks = np.array([curves[0][1000], curves[2][1000]])  # on the blue and the green stripe's centre lines
-    mask = mask_from_color_picks(image, picks)
-    clear = maximum_filter(labels, size=5) == minimum_filter(labels, size=5)
-    assert np.mean(mask[clear] == labels[clear]) > 0.995
-    moved, truth, _ = _two_stripes((5.0, 3.0), seed=7)
-    found = classify_paint(train_paint_classifier(image, mask), moved)
-    clear = maximum_filter(truth, size=5) == minimum_filter(truth, size=5)
-    assert np.mean(found[clear] == truth[clear]) > 0.999
-    with pytest.raises(InputError, match="outside"):
-        mask_from_color_picks(image, [[320, 10]])
-
-
-def test_a_mask_with_no_pixel_of_a_colour_is_refused() -> None:
-    image, labels, _ = _two_stripes()
-    skipped = np.where(labels == 1, 3, labels)  # paints 0 (value 1) missing: values 0, 2, 3
-    with pytest.raises(InputError, match=r"paint colour 0 \(mask value 1\) has no pixel"):
-        train_paint_classifier(image, skipped)
-    with pytest.raises(InputError, match="paint colour 1"):
-        train_paint_classifier(image, [labels == 1, np.zeros_like(labels, dtype=bool)])
-    with pytest.raises(InputError, match="no painted pixel"):
-        train_paint_classifier(image, np.zeros_like(labels))
-    with pytest.raises(InputError, match="does not match"):
-        train_paint_classifier(image, [labels[:-1] == 1])
-    with pytest.raises(InputError, match="expected an"):
-        train_paint_classifier(image, labels[:, :-1])
 
 
 def test_track_wrinkles_refuses_a_frame_of_another_size() -> None:

@@ -52,3 +52,15 @@ def render_stripes(size: tuple[int, int], stripes: list[tuple[np.ndarray, float,
     rng = np.random.default_rng(seed)
     image = image + rng.normal(0.0, noise, image.shape)
     return np.clip(np.round(image * 255), 0, 255).astype(np.uint8), mask
+
+
+def two_stripes(shift: tuple[float, float] = (0.0, 0.0), seed: int = 0) -> tuple[np.ndarray, np.ndarray, list]:
+    """Two blue stripes and a green one between them on a 320 x 240 image: (image, paint labels 0/1/2, centre curves)."""
+    du, dv = shift
+    curves = [centre_curve(40.0 + du, 260.0 + du, 60.0 + dv, 0.15, 0.0008),  # blue, upper
+              centre_curve(60.0 + du, 250.0 + du, 150.0 + dv, -0.1, 0.001),  # blue, lower: same paint
+              centre_curve(80.0 + du, 200.0 + du, 105.0 + dv, 0.0, 0.0005)]  # green, between
+    image, mask = render_stripes((320, 240), [(curves[0], 6.0, BLUE), (curves[1], 6.0, BLUE), (curves[2], 5.0, GREEN)],
+                                 seed=seed)
+    labels = np.where(mask == 2, 1, np.where(mask == 3, 2, mask))  # paint labels: blue 1, green 2
+    return image, labels, curves
