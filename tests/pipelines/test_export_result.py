@@ -249,6 +249,29 @@ def test_export_usd_writes_what_animate_writes(capture_case, tmp_path):
             np.testing.assert_allclose(points, frames[k], atol=1e-4)
 
 
+
+def test_animate_hands_the_usd_export_the_principal_components_it_would_compute(capture_case, tmp_path):
+    # animate computes the USD rig's principal components beside writing the rest of the result; the export of
+    # the same result computes them itself: the same shapes, the same stated error
+    from pxr import Usd, UsdSkel
+
+    early, later = tmp_path / "early", tmp_path / "later"
+    _animate(capture_case, early, "--no-vertices", "--export", "usd", "--usd-shapes", "4")
+    _animate(capture_case, later, "--no-vertices")
+    assert main(["-q", "export", str(later), "--format", "usd", "--usd-shapes", "4"]) == 0
+
+    def shapes(folder):
+        stage = Usd.Stage.Open(str(folder / "performance_rig.usdc"))
+        found = {prim.GetName(): np.array(UsdSkel.BlendShape(prim).GetOffsetsAttr().Get(), np.float64)
+                 for prim in stage.Traverse() if prim.IsA(UsdSkel.BlendShape)}
+        return found, json.loads((folder / "performance.json").read_text())["exports_report"]["usd"]
+
+    (a, report_a), (b, report_b) = shapes(early), shapes(later)
+    assert len(a) == 4 and a.keys() == b.keys()
+    for name in a:
+        np.testing.assert_allclose(a[name], b[name], atol=1e-6)
+    assert report_a["error"] == pytest.approx(report_b["error"])
+
 def test_point_caches_and_alembic_in_the_world_frame_round_trip(capture_case_head_motion, tmp_path):
     from alembic3d import Abc, AbcGeom
 

@@ -39,6 +39,7 @@ from ..structures import Correspondence, MarkerSequence, Mesh
 from ..markers.check_take_units import check_take_units
 from ..units import mm_per_unit
 from ..validate import as_positive
+from .export_result import usd_principal_components, usd_shape_count
 from .finish_result import finish_result, import_writers
 
 __all__ = ["animate_scan", "AnimationResult", "OFFSET_WARNING_MM"]
@@ -249,7 +250,7 @@ def animate_scan(
         # per-frame product's numba loop loads cffi at its first call): on a small scan the set-up is done first
         mesh_check, timings["check_mesh_s"] = mesh_check_run.result()
         writers_import.result()
-        prepared, ring, centres, warp, face_markers, chosen, head_motion = side
+        prepared, ring, centres, warp, face_markers, chosen, head_motion, loo = side
         if not np.array_equal(prepared.constrained_vertices, planned):
             solver = ThinShellSolver(
                 scan.vertices, scan.faces, prepared.constrained_vertices,
@@ -266,7 +267,6 @@ def animate_scan(
         offsets = MarkerOffsets(scan.vertices, scan.faces, solver, marker_offset_mm=marker_offset_mm, ring=ring)
         timings["shell_setup_s"] = time.perf_counter() - t  # the shell and the offsets' part of it that needs it
         marker_displacements = face_markers - centres[None]
-        loo = warp.leave_one_out_residuals()
 
         t = time.perf_counter()
         displacements = offsets.skin_displacements(marker_displacements)
@@ -312,12 +312,17 @@ def animate_scan(
         "first_frame": markers.first_frame,
         **(extra_metadata or {}),
     }
-    with PerformanceWriter(out_dir, mesh=scan, rate=markers.rate, n_frames=T, exports=exports,
-                           vertices=write_vertices, overwrite=overwrite,
-                           export_options={"progress": progress, **(export_options or {})}) as writer:
-        to_unit = np.float32(1.0 / mm_per_unit(scan.source_unit))
-        writer.write_rig(ResultRig(rest32 * to_unit, solver.basis, disp32 * to_unit, units=scan.source_unit,
-                                   names=prepared.labels), precision=rig_precision)
+    to_unit = np.float32(1.0 / mm_per_unit(scan.source_unit))
+    rig = ResultRig(rest32 * to_unit, solver.basis, disp32 * to_unit, units=scan.source_unit, names=prepared.labels)
+    options = {"progress": progress, **(export_options or {})}
+    # The USD rig's principal components (1 s at 700k vertices) need only the rig: computed on a second thread
+    # while this one writes the rest of the result, and handed to the export at the end
+    usd_count = usd_shape_count(rig, options.get("usd_shapes", "auto")) if "usd" in exports else None
+    with ThreadPoolExecutor(1) as beside_writing, \
+            PerformanceWriter(out_dir, mesh=scan, rate=markers.rate, n_frames=T, exports=exports,
+                              vertices=write_vertices, overwrite=overwrite, export_options=options) as writer:
+        usd_principal = beside_writing.submit(usd_principal_components, rig, usd_count) if "usd" in exports else None
+        writer.write_rig(rig, precision=rig_precision)
         if writer.needs_frames:
             writer.stream(lambda start, stop, out: solver.deform_into(disp32[start:stop], rest32, out),
                           batch_frames=batch_frames, head_pose=head_pose, progress=progress, desc="animate")
@@ -363,6 +368,8 @@ def animate_scan(
         }
         writer.path("report.json").write_text(json.dumps(report, indent=1))
         metadata["timings"] = timings
+        if usd_principal is not None:
+            writer.export_options["usd_principal"] = usd_principal.result()
         final = finish_result(writer, metadata)
     return AnimationResult(out_dir=final, report=report)
 
@@ -387,6 +394,7 @@ class _MarkersSide(NamedTuple):
     face_markers: np.ndarray
     chosen: RestPose
     head_motion: dict[str, Any]
+    leave_one_out: np.ndarray  # the warp's, per marker (mm)
 
 
 def _markers_side(scan: Mesh, markers: MarkerSequence, correspondence: Correspondence, *, rest_frame: int,
@@ -418,7 +426,8 @@ def _markers_side(scan: Mesh, markers: MarkerSequence, correspondence: Correspon
     samples = _effective_samples(rest_average_s * markers.rate, rest_frame, markers.n_frames)
     ring, centres, warp, face_markers, chosen = _marker_side(scan, prepared, rest_markers, marker_offset_mm,
                                                               rest_pose, neutral_markers, noise_mm, samples)
-    return _MarkersSide(prepared, ring, centres, warp, face_markers, chosen, head_motion)
+    return _MarkersSide(prepared, ring, centres, warp, face_markers, chosen, head_motion,
+                        warp.leave_one_out_residuals())
 
 
 def _marker_side(scan: Mesh, prepared: PreparedMarkers, rest_markers: np.ndarray, marker_offset_mm: float,

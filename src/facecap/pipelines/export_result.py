@@ -48,10 +48,12 @@ import numpy as np
 from ..errors import FacecapWarning, InputError
 from ..io.atomic_write import atomic_folder, atomic_write_text, ensure_folder
 from ..io.read_result import Result, read_result
+from ..io.result_rig import ResultRig
 from ..io.result_layout import (EXPORT_FRAMES, PERFORMANCE_FILE, REST_OBJ_FILE, WORLD_FRAME_FORMATS, export_files,
                                 file_sizes, parse_export_formats)
 
-__all__ = ["export_result", "DEFAULT_GLTF_TARGETS", "DEFAULT_REVIEW_VERTICES", "MAX_ERROR_PASS_FLOPS"]
+__all__ = ["export_result", "usd_shape_count", "usd_principal_components", "DEFAULT_GLTF_TARGETS",
+           "DEFAULT_REVIEW_VERTICES", "MAX_ERROR_PASS_FLOPS"]
 
 DEFAULT_GLTF_TARGETS = 64
 """Morph targets of a glTF review file at most (principal components beyond an exact small rig)."""
@@ -77,6 +79,7 @@ def export_result(
     batch_frames: int = 64,
     skip_streamed: bool = False,
     progress: bool = False,
+    usd_principal: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """Write ``formats`` of a finished result, adding to the folder and removing nothing.
 
@@ -117,6 +120,9 @@ def export_result(
     skip_streamed : bool, default False
         Leave out what a run streams itself (time-sampled USD points, OBJ, PLY).
     progress : bool, default False
+    usd_principal : dict, optional
+        The USD rig's principal components computed already (:func:`usd_principal_components` of this
+        result's rig and ``usd_shapes``, whose warning the caller has given); default None: computed here.
 
     Returns
     -------
@@ -161,7 +167,7 @@ def export_result(
         entry = _WRITERS[fmt](result, target, batch_frames=batch_frames, progress=progress,
                               gltf_targets=gltf_targets, review_vertices=review_vertices, gltf_compress=gltf_compress,
                               usd_shapes=usd_shapes, rest_obj=rest_obj, world=world, overwrite=overwrite,
-                              skip_streamed=skip_streamed)
+                              skip_streamed=skip_streamed, usd_principal=usd_principal)
         if world:
             entry["frame"] = "world"
             entry["head_motion"] = ("baked into the points (x_world = R_t x + t_t)" if result.head_motion is not None
@@ -195,12 +201,13 @@ def _sizes(*paths: Path) -> dict[str, int]:
 
 
 def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bool, usd_shapes: str | int,
-                skip_streamed: bool, **_: Any) -> dict[str, Any]:
+                skip_streamed: bool, usd_principal: dict[str, Any] | None = None, **_: Any) -> dict[str, Any]:
     """``performance_rig.usdc`` from the rig; ``performance.usdc`` (time-sampled points) as a run streams it."""
     files: dict[str, int] = {}
     stats: dict[str, Any] = {}
     if result.rig is not None:
-        stats = _export_usd_rig(result, target / "performance_rig.usdc", progress=progress, usd_shapes=usd_shapes)
+        stats = _export_usd_rig(result, target / "performance_rig.usdc", progress=progress, usd_shapes=usd_shapes,
+                                usd_principal=usd_principal)
         files.update(_sizes(target / "performance_rig.usdc"))
     if not skip_streamed and (result.rig is None or result.has_vertices):
         from ..io.write_usd import UsdPerformanceWriter
@@ -218,37 +225,67 @@ def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bo
     return {"files": files, **stats}
 
 
-def _export_usd_rig(result: Result, path: Path, *, progress: bool, usd_shapes: str | int) -> dict[str, Any]:
-    from ..io.write_usd_blendshapes import DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES, write_usd_blendshapes
+def usd_shape_count(rig: ResultRig, usd_shapes: str | int = "auto") -> int | None:
+    """How many blend shapes the USD rig of ``rig`` gets: None for the exact ones, else a principal-component count.
 
-    rig = result.rig
+    As :func:`export_result`'s ``usd_shapes`` says; 'auto' warns (one line) where it drops to principal components.
+
+    Raises
+    ------
+    InputError
+        If ``usd_shapes`` is not 'auto', 'exact' or a positive count.
+    """
+    from ..io.write_usd_blendshapes import DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES
+
     if usd_shapes == "exact":
-        max_shapes = None
-    elif usd_shapes == "auto":
+        return None
+    if usd_shapes == "auto":
         too_big = 12 * rig.n_shapes * rig.n_vertices > USD_EXACT_MAX_BYTES
-        max_shapes = DEFAULT_USD_COMPONENTS if too_big else None
         if too_big:
             warnings.warn(
                 f"USD: the exact rig needs {rig.n_shapes} blend shapes of {rig.n_vertices} vertices "
-                f"({12 * rig.n_shapes * rig.n_vertices / 1e9:.1f} GB); writing its first {max_shapes} principal "
-                "components instead (error in performance.json; the exact form is rig/, or --usd-shapes exact)",
-                FacecapWarning, stacklevel=4)
-    else:
-        max_shapes = int(usd_shapes)
-        if max_shapes < 1:
-            raise InputError(f"--usd-shapes: expected 'auto', 'exact' or a positive count, got {usd_shapes!r}")
-    principal: dict[str, Any] = {}
-    if max_shapes is not None and rig.n_shapes > max_shapes:  # the take's first principal components
-        from ..deform.principal_targets import principal_targets_from_rig
+                f"({12 * rig.n_shapes * rig.n_vertices / 1e9:.1f} GB); writing its first {DEFAULT_USD_COMPONENTS} "
+                "principal components instead (error in performance.json; the exact form is rig/, or --usd-shapes exact)",
+                FacecapWarning, stacklevel=3)
+        return DEFAULT_USD_COMPONENTS if too_big else None
+    try:
+        count = int(usd_shapes)
+    except (TypeError, ValueError):
+        count = 0
+    if count < 1:
+        raise InputError(f"--usd-shapes: expected 'auto', 'exact' or a positive count, got {usd_shapes!r}")
+    return count
 
-        basis, coefficients = rig.in_mm()
-        found = principal_targets_from_rig(
-            basis, coefficients, max_targets=max_shapes, progress=progress,
-            exact_max=rig.n_frames * rig.n_vertices * rig.n_shapes <= MAX_ERROR_PASS_FLOPS)
-        principal = {"principal_targets": found.targets, "principal_weights": found.weights,
-                     "principal_error": found.error}
+
+def usd_principal_components(rig: ResultRig, shape_count: int | None, *, progress: bool = False) -> dict[str, Any]:
+    """The principal components the USD rig of ``rig`` holds, as :func:`~facecap.io.write_usd_blendshapes` takes them.
+
+    ``{}`` where the rig is written exactly (``shape_count`` None, or no fewer than the rig's shapes); else
+    ``principal_targets``, ``principal_weights`` and ``principal_error`` of the take's first ``shape_count``
+    components (:func:`~facecap.deform.principal_targets_from_rig`, the exact maximum error where one pass over
+    the take costs at most :data:`MAX_ERROR_PASS_FLOPS`). Arrays in and out, no warning: a job may compute it
+    on another thread while it writes the rest of the result, and pass it to :func:`export_result`.
+    """
+    if shape_count is None or rig.n_shapes <= shape_count:
+        return {}
+    from ..deform.principal_targets import principal_targets_from_rig
+
+    basis, coefficients = rig.in_mm()
+    found = principal_targets_from_rig(
+        basis, coefficients, max_targets=shape_count, progress=progress,
+        exact_max=rig.n_frames * rig.n_vertices * rig.n_shapes <= MAX_ERROR_PASS_FLOPS)
+    return {"principal_targets": found.targets, "principal_weights": found.weights, "principal_error": found.error}
+
+
+def _export_usd_rig(result: Result, path: Path, *, progress: bool, usd_shapes: str | int,
+                    usd_principal: dict[str, Any] | None) -> dict[str, Any]:
+    from ..io.write_usd_blendshapes import write_usd_blendshapes
+
+    rig = result.rig
+    if usd_principal is None:
+        usd_principal = usd_principal_components(rig, usd_shape_count(rig, usd_shapes), progress=progress)
     return write_usd_blendshapes(path, result.mesh, rig, rate=result.rate, head_motion=result.head_motion,
-                                 progress=progress, **principal)
+                                 progress=progress, **usd_principal)
 
 
 def _export_frames(fmt: str):
