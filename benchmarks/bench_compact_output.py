@@ -6,7 +6,8 @@ farthest-point markers, smooth marker motion at 120 Hz):
 1. **compact**: ``animate_scan(..., write_vertices=False, exports=['usd'])``: the rig and the USD
    blend shapes, no ``vertices.npy``; wall time end to end against the set-up alone (the shell's
    factorisation and basis and the marker offsets, what ``timings.shell_setup_s`` covers, built by
-   themselves in the same process, once before and once after the run, the faster taken: inside
+   themselves in the same process, once before and once after each of ``--repeats`` runs, the faster
+   of a run's two taken, the median of the runs' ratios reported: inside
    ``animate`` the mesh check runs on a second thread beside it, so the run's own
    ``shell_setup_s`` is not the set-up alone), and the bytes written;
 2. **glTF review file** of that result (``export_result(..., 'gltf')``): the review mesh, the
@@ -30,6 +31,8 @@ import time
 import warnings
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -86,6 +89,8 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--baseline-frames", type=int, default=1000)
     p.add_argument("--work", default=str(Path(__file__).resolve().parent / "_work" / "compact"))
     p.add_argument("--no-gltf", action="store_true")
+    p.add_argument("--repeats", type=int, default=3,
+                   help="compact runs, each between two set-ups alone; the ratio is their median [3]")
     p.add_argument("--markdown", action="store_true")
     args = p.parse_args(argv)
 
@@ -99,15 +104,24 @@ def main(argv: list[str] | None = None) -> None:
     out: dict[str, Any] = {"case": args.case, "vertices": scan.n_vertices, "markers": N_MARKERS,
                            "frames": args.frames, "machine": machine_facts()}
 
-    setup_before = _setup_alone(scan, take, corr)
-    wall, report = _animate(scan, take, corr, work / "compact", write_vertices=False, exports=["usd"])
-    setup_after = _setup_alone(scan, take, corr)
-    setup = min(setup_before, setup_after)
+    # set-up alone, then each run followed by a set-up alone: every run has one just before and one just after it
+    # (this machine's speed drifts by 1.5x within the hour; a run is compared only with the set-ups beside it)
+    setups = [_setup_alone(scan, take, corr)]
+    walls = []
+    for _ in range(max(1, args.repeats)):
+        shutil.rmtree(work / "compact", ignore_errors=True)
+        wall, report = _animate(scan, take, corr, work / "compact", write_vertices=False, exports=["usd"])
+        walls.append(wall)
+        setups.append(_setup_alone(scan, take, corr))
+    conservative = [w / min(a, b) for w, a, b in zip(walls, setups, setups[1:])]  # the faster set-up beside it
+    against_mean = [w / (0.5 * (a + b)) for w, a, b in zip(walls, setups, setups[1:])]
     compact_bytes = _folder_bytes(work / "compact")
     info = read_result(work / "compact").info
     out["compact"] = {
-        "wall_s": wall, "setup_s": setup, "setup_alone_runs_s": [setup_before, setup_after],
-        "setup_in_run_s": report["timings"]["shell_setup_s"], "ratio_to_setup": wall / setup,
+        "wall_s": float(np.median(walls)), "walls_s": walls, "setup_alone_runs_s": setups,
+        "setup_s": float(np.median(setups)), "setup_in_run_s": report["timings"]["shell_setup_s"],
+        "ratio_to_setup": float(np.median(conservative)), "ratios_to_setup": conservative,
+        "ratio_to_mean_setup": float(np.median(against_mean)), "ratios_to_mean_setup": against_mean,
         "timings": report["timings"], "bytes": compact_bytes,
         "files": info["files"], "usd": info.get("exports_report", {}).get("usd"),
     }

@@ -59,6 +59,17 @@ def test_a_basis_stored_vertex_by_vertex_gives_the_same_figures() -> None:
     _, _, error_c = principal_targets_from_rig(np.ascontiguousarray(basis), coefficients, max_targets=7)
     assert error["worst_vertex_rms_mm"] == pytest.approx(error_c["worst_vertex_rms_mm"], rel=1e-12)
 
+
+def test_a_float32_basis_gives_the_targets_of_its_float64_copy_to_float32_rounding() -> None:
+    basis, coefficients, offsets = scalar_rig()
+    exact = principal_targets_from_rig(basis.astype(np.float32).astype(np.float64), coefficients, max_targets=64)
+    single = principal_targets_from_rig(np.asfortranarray(basis.astype(np.float32)), coefficients, max_targets=64)
+    scale = np.abs(exact.targets).max()
+    assert np.abs(single.targets - exact.targets).max() < 2e-6 * scale
+    assert single.error["rms_mm"] == pytest.approx(exact.error["rms_mm"], abs=1e-9)
+    rebuilt = np.einsum("tr,ric->tic", single.weights.astype(np.float64), single.targets.astype(np.float64))
+    assert np.abs(rebuilt - offsets).max() < 2e-5 * np.abs(offsets).max()  # the rank-36 take, rebuilt
+
 @pytest.mark.parametrize("rig", [scalar_rig, vector_rig])
 def test_error_figures_equal_brute_force(rig) -> None:
     basis, coefficients, offsets = rig()
