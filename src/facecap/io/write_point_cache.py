@@ -170,9 +170,8 @@ def write_pc2(
     Raises
     ------
     InputError
-        If an argument is invalid, the folder does not exist, a block is out
-        of order, of the wrong shape or holds NaN or infinite values, or the
-        stream ends before ``n_frames`` frames. No file is left behind.
+        As :func:`write_mdd` raises it (a bad argument or block, a missing
+        folder, a short stream); no file is left behind.
 
     Notes
     -----
