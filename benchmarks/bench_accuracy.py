@@ -87,7 +87,7 @@ from facecap.report.evaluate_performance import DenseError, evaluate_performance
 from facecap.report.evaluate_result import evaluate_result, read_truth
 from facecap.synth.expression_curves import smooth_expression_curves
 from facecap.synth.generate_performance import generate_performance
-from facecap.synth.ict_sample import IctSample, bundled_path, load_ict_sample
+from facecap.io.ict_sample import IctSample, bundled_path, load_ict_sample
 from facecap.synth.write_synthetic_case import write_synthetic_case
 
 RATE_HZ = 60.0

@@ -49,7 +49,7 @@ def _curves(names: list[str]) -> np.ndarray:
 
 
 def _case(work: Path, seed: int, levels: int, render_edge_mm: float | None) -> Path:
-    from facecap.synth.ict_sample import load_ict_sample
+    from facecap.io.ict_sample import load_ict_sample
     from facecap.synth.write_footage_case import write_footage_case
 
     edge = "scan" if render_edge_mm is None else f"{render_edge_mm:g}mm"

@@ -64,8 +64,8 @@ from facecap.io.read_correspondence import read_correspondence  # noqa: E402
 from facecap.io.read_markers import read_markers  # noqa: E402
 from facecap.pipelines import map_markers  # noqa: E402
 from facecap.structures import Mesh  # noqa: E402
-from facecap.synth import (generate_performance, load_ict_sample, bundled_path, random_identity,  # noqa: E402
-                           random_rest_expression)
+from facecap.io.ict_sample import bundled_path, load_ict_sample  # noqa: E402
+from facecap.synth import generate_performance, random_identity, random_rest_expression  # noqa: E402
 
 WITHIN_MM = 1.5
 HELD_OUT_FIRST_SEED = 2000

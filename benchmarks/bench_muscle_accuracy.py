@@ -89,7 +89,7 @@ from facecap.io.read_correspondence import read_correspondence  # noqa: E402
 from facecap.io.read_markers import read_markers  # noqa: E402
 from facecap.pipelines import solve_muscle_take  # noqa: E402
 from facecap.structures import MarkerSequence, Mesh  # noqa: E402
-from facecap.synth import bundled_path, load_ict_sample  # noqa: E402
+from facecap.io.ict_sample import bundled_path, load_ict_sample  # noqa: E402
 
 TUNED = ("default_0", "studio_a_real")
 HELD_OUT = ("held_real_turns", "held_speech_turns", "held_real_still")

@@ -51,7 +51,8 @@ from facecap.cli import main  # noqa: E402
 from facecap.errors import FacecapWarning  # noqa: E402
 from facecap.muscles import FOLLOWER_WEIGHT_LIMIT, MuscleSolver  # noqa: E402
 from facecap.report.evaluate_result import result_and_truth_mm  # noqa: E402
-from facecap.synth import load_ict_sample, write_synthetic_case  # noqa: E402
+from facecap.synth import write_synthetic_case  # noqa: E402
+from facecap.io.ict_sample import load_ict_sample
 
 
 def run_case(name: str, work: Path, *, n_tets: int, points: int, stride: int, n_frames: int, warm_steps: int,

@@ -88,7 +88,8 @@ from facecap.anatomy import build_anatomy, load_anatomy  # noqa: E402
 from facecap.mesh.factor_spd import available_backends  # noqa: E402
 from facecap.muscles import (MuscleControls, MuscleFrame, MuscleModel, MuscleSolver, forward_markers,  # noqa: E402
                              marker_embedding)
-from facecap.synth import choose_marker_vertices, load_ict_sample  # noqa: E402
+from facecap.synth import choose_marker_vertices  # noqa: E402
+from facecap.io.ict_sample import load_ict_sample
 
 DEFAULT_TETS = 100_000  # build_anatomy's default
 N_MARKERS = 120

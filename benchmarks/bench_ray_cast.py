@@ -33,7 +33,7 @@ def _best(fn, repeat: int) -> tuple[float, object]:
 
 def _mesh(case: str) -> tuple[np.ndarray, np.ndarray]:
     if case == "sample":
-        from facecap.synth.ict_sample import load_ict_sample
+        from facecap.io.ict_sample import load_ict_sample
 
         mesh = load_ict_sample().mesh
         return mesh.vertices, mesh.faces

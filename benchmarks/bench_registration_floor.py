@@ -61,7 +61,8 @@ from facecap.registration.register_scans import DEFAULT_REST_WEIGHT  # noqa: E40
 from facecap.registration.rigid_icp import interpolated_normals  # noqa: E402
 from facecap.report.evaluate_result import evaluate_result  # noqa: E402
 from facecap.structures import Mesh  # noqa: E402
-from facecap.synth import load_ict_sample, write_synthetic_case  # noqa: E402
+from facecap.synth import write_synthetic_case  # noqa: E402
+from facecap.io.ict_sample import load_ict_sample
 
 MARKER_WEIGHT = 1e4
 """eq. 7's w1 (the package default)."""

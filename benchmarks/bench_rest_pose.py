@@ -53,7 +53,8 @@ from facecap.deform.thin_shell import ThinShellSolver  # noqa: E402
 from facecap.errors import FacecapWarning  # noqa: E402
 from facecap.report.evaluate_performance import evaluate_performance  # noqa: E402
 from facecap.report.evaluate_result import result_and_truth_mm  # noqa: E402
-from facecap.synth import SyntheticCase, load_ict_sample, write_synthetic_case  # noqa: E402
+from facecap.synth import SyntheticCase, write_synthetic_case  # noqa: E402
+from facecap.io.ict_sample import load_ict_sample
 
 N_FRAMES = 600
 

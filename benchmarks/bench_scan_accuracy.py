@@ -56,7 +56,8 @@ from facecap.io.conditioned_take import read_conditioned_take  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402
 from facecap.markers import rigid_fit  # noqa: E402
 from facecap.report.evaluate_result import evaluate_result, result_and_truth_mm  # noqa: E402
-from facecap.synth import SkinRegions, load_ict_sample, write_planned_scans, write_synthetic_case  # noqa: E402
+from facecap.synth import SkinRegions, write_planned_scans, write_synthetic_case  # noqa: E402
+from facecap.io.ict_sample import load_ict_sample
 
 
 def _stabilisation_error_deg(synthetic, conditioned) -> np.ndarray:

@@ -47,7 +47,8 @@ from _load import Window, peak_rss_gb  # noqa: E402
 
 from facecap.pipelines import blend_take, plan_scans, register_planned_scans, replay_conditioning  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402
-from facecap.synth import generate_performance, load_ict_sample, write_planned_scans, write_synthetic_case  # noqa: E402
+from facecap.synth import generate_performance, write_planned_scans, write_synthetic_case  # noqa: E402
+from facecap.io.ict_sample import load_ict_sample
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -123,7 +123,7 @@ def run_case(work: Path, name: str, render_edge_mm: float | None) -> dict:
 def speed_at(levels: int, seed: int = 0) -> dict:
     """Synthesis alone on a finer scan with the generator's truth curves (two frames at full expression)."""
     from facecap.synth.generate_performance import generate_performance
-    from facecap.synth.ict_sample import load_ict_sample
+    from facecap.io.ict_sample import load_ict_sample
     from facecap.synth.wrinkle_scan import subdivide_scan
     from facecap.synth.wrinkles import add_wrinkles, every_wrinkle_at_once, place_wrinkles
     from facecap.wrinkles import SurfaceWrinkle, synthesize_wrinkles

@@ -26,6 +26,6 @@ def capture_case_head_motion(tmp_path: Path) -> CaptureCase:
 def anatomy():
     """The bundled ICT face's anatomy at ``SMALL_MODEL_TETS`` (about 8 s to build; tests must not change it)."""
     from facecap.anatomy import build_anatomy
-    from facecap.synth import load_ict_sample
+    from facecap.io.ict_sample import load_ict_sample
 
     return build_anatomy(load_ict_sample().mesh, n_tets=SMALL_MODEL_TETS, progress=False)

@@ -148,7 +148,7 @@ def test_synth_writes_a_case_and_its_footage(tmp_path, capsys):
 
     from facecap.cameras import open_footage, read_camera_file
     from facecap.io import read_markers, read_mesh
-    from facecap.synth.ict_sample import load_ict_sample
+    from facecap.io.ict_sample import load_ict_sample
     from facecap.synth.wrinkle_scan import subdivide_scan
 
     assert main(["-q", "synth", "--out", str(tmp_path / "a"), "--frames", "12", "--seed", "2"]) == 0

@@ -10,7 +10,7 @@ import numpy as np
 from facecap.anatomy import load_anatomy
 from facecap.cli import main
 from facecap.io import read_mesh, write_mesh
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def _scan(tmp_path: Path) -> Path:

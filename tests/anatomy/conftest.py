@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from facecap.anatomy import anatomy_landmarks, soft_tissue_shell
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 @pytest.fixture(scope="session")

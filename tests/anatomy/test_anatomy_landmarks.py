@@ -11,7 +11,7 @@ import pytest
 from anatomy_meshes import grid_mesh as _grid_mesh
 from facecap.anatomy import ANATOMY_LANDMARK_NAMES, anatomy_landmarks, read_landmarks
 from facecap.errors import FileFormatError, InputError
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_landmark_json_round_trip_and_errors(tmp_path: Path) -> None:

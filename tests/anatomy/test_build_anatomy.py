@@ -16,7 +16,7 @@ from facecap.anatomy import (
     tet_volumes,
 )
 from facecap.errors import InputError
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_skin_embedding_reproduces_every_scan_vertex(anatomy) -> None:

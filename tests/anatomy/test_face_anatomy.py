@@ -10,7 +10,7 @@ import pytest
 
 from facecap.anatomy import load_anatomy
 from facecap.errors import FileFormatError
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_save_and_load_round_trip(anatomy, tmp_path: Path) -> None:

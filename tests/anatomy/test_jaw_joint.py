@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from facecap.anatomy import anatomy_landmarks, is_mandible, jaw_joint
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_mandible_cut_and_condyles_from_the_ict_landmarks() -> None:

@@ -10,7 +10,7 @@ import trimesh
 from facecap.anatomy import MIN_TISSUE_MM, PART_SKIN, anatomy_landmarks, soft_tissue_shell
 from facecap.errors import MeshError
 from facecap.structures import Mesh
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_closed_surface_is_watertight_outward_and_keeps_the_scan_vertices(shell) -> None:

@@ -2,7 +2,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from facecap.blendshapes.reconstruct_performance import blend_rig, blend_weights
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_weights_of_known_combinations():

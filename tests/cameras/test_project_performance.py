@@ -8,7 +8,7 @@ import pytest
 
 from facecap.cameras import Camera, RayCaster, project_performance
 from facecap.errors import InputError, MeshError
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def _rotation_y(angle: float) -> np.ndarray:

@@ -7,7 +7,7 @@ import pytest
 
 from facecap.cameras import Camera, RayCaster, ray_cast
 from facecap.errors import InputError, MeshError
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 DISTORTION = [-0.1, 0.05, 1e-3, -5e-4, 0.01]
 

@@ -64,7 +64,8 @@ def test_a_still_head_without_band_is_left_unstabilised_and_a_moving_one_is_not(
     # Strong, frequent expressions and skin markers only: on a still head the most rigid markers
     # still turn with the expressions, which stabilisation would add to every frame.
     from facecap.errors import FacecapWarning
-    from facecap.synth import load_ict_sample, smooth_expression_curves
+    from facecap.synth import smooth_expression_curves
+    from facecap.io.ict_sample import load_ict_sample
 
     names = load_ict_sample().expression_names
     W = smooth_expression_curves(400, names, rate=60, seed=21, expressions_per_second=1.5, intensity=(0.9, 1.0))

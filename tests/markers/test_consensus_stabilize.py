@@ -8,7 +8,8 @@ from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError, MarkerError
 from facecap.markers import consensus_stabilize, estimate_marker_noise, stabilize_head
-from facecap.synth import generate_performance, load_ict_sample, smooth_expression_curves
+from facecap.synth import generate_performance, smooth_expression_curves
+from facecap.io.ict_sample import load_ict_sample
 
 
 def _true_rotations(case) -> np.ndarray:

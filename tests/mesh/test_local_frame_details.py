@@ -6,7 +6,7 @@ import pytest
 
 from facecap.errors import InputError
 from facecap.mesh import LocalFrameDetails, local_frames
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def _face_and_detail(seed: int = 0):

@@ -6,7 +6,7 @@ import pytest
 
 from facecap.errors import InputError
 from facecap.mesh.vertex_normals import face_normals, vertex_normals
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 @pytest.fixture(scope="module")

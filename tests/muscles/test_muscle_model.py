@@ -148,7 +148,7 @@ def test_a_moving_jaw_inverts_no_tetrahedron() -> None:
     # each inverted an element at the mouth's corner with no muscle active (measured: smallest volume
     # ratio -0.12 and -0.01); the coarse shared model does not show it
     from facecap.anatomy import build_anatomy, tet_volumes
-    from facecap.synth import load_ict_sample
+    from facecap.io.ict_sample import load_ict_sample
 
     anatomy = build_anatomy(load_ict_sample().mesh, n_tets=6000, progress=False)
     model = MuscleModel(anatomy)

@@ -6,7 +6,8 @@ import json
 import pytest
 
 from facecap.cli import main
-from facecap.synth import generate_performance, load_ict_sample, write_planned_scans, write_synthetic_case
+from facecap.synth import generate_performance, write_planned_scans, write_synthetic_case
+from facecap.io.ict_sample import load_ict_sample
 
 
 @pytest.fixture(scope="session")

@@ -23,7 +23,7 @@ from facecap.pipelines.animate_scan import animate_scan
 from facecap.errors import FacecapWarning, InputError
 from facecap.io import read_correspondence, read_markers, read_mesh
 from facecap.io.read_result import read_result
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.wrinkles import every_wrinkle_at_once
 from facecap.synth.write_footage_case import write_footage_case
 from facecap.pipelines import capture_wrinkles

@@ -126,7 +126,7 @@ def test_bad_input_is_refused_before_anything_is_written(files, tmp_path) -> Non
 def test_another_persons_markers_are_placed_rigidly_with_a_warning(tmp_path) -> None:
     # the bundled real take was captured on another face than the bundled ICT scan: no resting expression
     # explains the difference, so the markers are placed by the rigid fit alone and the summary says why
-    from facecap.synth import bundled_path, load_ict_sample
+    from facecap.io.ict_sample import bundled_path, load_ict_sample
 
     take = read_markers(bundled_path("eyebrows.c3d"))
     report = map_markers(load_ict_sample().mesh, take, tmp_path / "map.json")

@@ -19,7 +19,8 @@ from facecap.cli import main
 from facecap.io import read_markers, read_result, write_markers
 from facecap.muscles import FOLLOWER_WEIGHT_LIMIT, MuscleControls, MuscleModel, forward_markers, marker_embedding
 from facecap.structures import MarkerSequence
-from facecap.synth import choose_marker_vertices, load_ict_sample
+from facecap.synth import choose_marker_vertices
+from facecap.io.ict_sample import load_ict_sample
 
 N_MARKERS = 120
 N_FRAMES = 6

@@ -5,7 +5,7 @@ import json
 import numpy as np
 
 from facecap.pipelines.write_blended_performance import write_blended_performance
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_known_combinations_are_written_in_the_output_frame(tmp_path):

@@ -9,7 +9,8 @@ import pytest
 from facecap.errors import InputError
 from facecap.registration.align_albedo import align_albedo
 from facecap.structures import Mesh
-from facecap.synth import load_ict_sample, scan_expression
+from facecap.synth import scan_expression
+from facecap.io.ict_sample import load_ict_sample
 
 
 def _texture(points: np.ndarray) -> np.ndarray:

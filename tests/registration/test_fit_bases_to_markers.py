@@ -1,7 +1,7 @@
 import numpy as np
 
 from facecap.registration.fit_bases_to_markers import fit_bases_to_markers
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_fitted_bases_hit_their_markers_and_change_little_elsewhere():

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from facecap.registration import register_scans
-from facecap.synth import generate_performance, load_ict_sample, scan_expression
+from facecap.synth import generate_performance, scan_expression
+from facecap.io.ict_sample import load_ict_sample
 
 
 def test_markers_beyond_the_scan_still_place_the_skin_and_quality_is_reported():

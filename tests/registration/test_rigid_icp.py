@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from facecap.errors import InputError, MeshError
 from facecap.markers import rigid_fit
 from facecap.registration import IcpResult, check_surface_units, rigid_icp, trimmed_inliers
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 def _bumpy_sheet(n: int = 60, size: float = 120.0) -> tuple[np.ndarray, np.ndarray]:

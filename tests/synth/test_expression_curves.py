@@ -5,7 +5,7 @@ import pytest
 
 from facecap.errors import InputError
 from facecap.synth.expression_curves import EXPRESSION_PRESETS, smooth_expression_curves
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 
 
 @pytest.fixture(scope="module")

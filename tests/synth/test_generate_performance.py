@@ -9,7 +9,7 @@ from facecap.errors import InputError
 from facecap.mesh.vertex_normals import vertex_normals
 from facecap.synth.expression_curves import smooth_expression_curves
 from facecap.synth.generate_performance import HEAD_PIVOTS_MM, TURN_DURATION_S, SyntheticCase, generate_performance
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.marker_layout import animface_marker_map, boundary_vertices
 
 

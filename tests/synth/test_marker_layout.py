@@ -6,7 +6,7 @@ import pytest
 from scipy.spatial.distance import pdist
 
 from facecap.errors import InputError
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.marker_layout import (
     animface_marker_map,
     boundary_vertices,

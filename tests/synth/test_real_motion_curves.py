@@ -7,7 +7,7 @@ from facecap.errors import InputError
 from facecap.io import read_markers
 from facecap.markers import condition_take, rigid_fit
 from facecap.mesh.vertex_normals import vertex_normals
-from facecap.synth.ict_sample import bundled_path, load_ict_sample
+from facecap.io.ict_sample import bundled_path, load_ict_sample
 from facecap.synth.marker_layout import animface_marker_map
 from facecap.synth.real_motion_curves import REAL_CURVE_NAMES, load_real_curve_fit, real_motion_curves
 

@@ -7,13 +7,8 @@ import numpy as np
 import pytest
 
 from facecap.errors import InputError
-from facecap.synth import (
-    RESTING_SHAPES,
-    as_rest_weights,
-    generate_performance,
-    load_ict_sample,
-    random_rest_expression,
-)
+from facecap.synth import RESTING_SHAPES, as_rest_weights, generate_performance, random_rest_expression
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.rest_expression import MAX_REST_WEIGHT
 
 

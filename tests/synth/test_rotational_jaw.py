@@ -7,8 +7,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from facecap.errors import InputError
-from facecap.synth import (ICT_JAW_SCREW, JawScrew, fit_jaw_screw, generate_performance, load_ict_sample,
-                           rotational_jaw_correction)
+from facecap.synth import ICT_JAW_SCREW, JawScrew, fit_jaw_screw, generate_performance, rotational_jaw_correction
+from facecap.io.ict_sample import load_ict_sample
 
 
 def _distance_to_axis(points: np.ndarray, screw: JawScrew) -> np.ndarray:

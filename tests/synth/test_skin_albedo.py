@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from facecap.errors import InputError
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.skin_albedo import BASE_SKIN_TONE, SkinRegions, skin_albedo
 
 LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec. 709 luminance of linear RGB

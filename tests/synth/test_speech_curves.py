@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from facecap.errors import InputError
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.speech_curves import speech_expression_curves
 
 RATE = 120.0  # fine sampling, so that 100-200 ms are 12-24 frames

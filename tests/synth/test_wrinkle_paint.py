@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from facecap.errors import InputError
-from facecap.synth import load_ict_sample, skin_albedo
+from facecap.synth import skin_albedo
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.wrinkle_paint import PAINT_COLORS, PAINT_HALF_WIDTH, paint_wrinkles
 from facecap.synth.wrinkle_scan import subdivide_scan
 from facecap.synth.wrinkles import place_wrinkles

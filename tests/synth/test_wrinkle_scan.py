@@ -8,7 +8,7 @@ import pytest
 
 from facecap.errors import InputError
 from facecap.structures import Mesh
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.wrinkle_scan import refine_near, subdivide_scan
 
 

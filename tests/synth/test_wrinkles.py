@@ -7,7 +7,7 @@ import pytest
 
 from facecap.errors import InputError
 from facecap.mesh.vertex_normals import vertex_normals
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.wrinkle_scan import subdivide_scan
 from facecap.synth.wrinkles import (INFLUENCE_WIDTHS, WRINKLE_KINDS, add_wrinkles, place_wrinkles,
                                     wrinkle_activation, wrinkle_expression_curves, wrinkle_profile)

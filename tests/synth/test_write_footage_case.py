@@ -11,7 +11,7 @@ from facecap.cameras import read_camera_file
 from facecap.errors import InputError
 from facecap.io import read_mesh
 from facecap.synth import generate_performance
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.wrinkle_scan import subdivide_scan
 from facecap.synth.wrinkles import add_wrinkles, every_wrinkle_at_once, place_wrinkles
 from facecap.synth.write_footage_case import (MOCAP_RATE_HZ, VIDEO_RATE_HZ, _render_frames, _render_mesh,

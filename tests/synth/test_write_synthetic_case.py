@@ -23,7 +23,8 @@ def test_written_case_reads_back_in_the_chosen_units(tmp_path):
 
 def test_colour_option_writes_scans_with_colours_and_changes_nothing_else(tmp_path):
     from facecap.io.read_mesh import read_mesh
-    from facecap.synth import SkinRegions, load_ict_sample, write_planned_scans
+    from facecap.synth import SkinRegions, write_planned_scans
+    from facecap.io.ict_sample import load_ict_sample
 
     case = generate_performance(n_frames=8, seed=2, n_markers=40)
     sample = load_ict_sample()

@@ -11,7 +11,7 @@ import pytest
 from facecap.cameras import Camera, RayCaster, read_camera_file, read_image
 from facecap.errors import InputError
 from facecap.io import read_mesh
-from facecap.synth.ict_sample import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.render_footage import sensor_noise
 from facecap.synth.wrinkles import every_wrinkle_at_once
 from facecap.synth.write_footage_case import RENDER_EDGE_MM, write_footage_case

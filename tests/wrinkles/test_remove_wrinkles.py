@@ -14,7 +14,7 @@ import pytest
 
 from facecap.errors import FacecapWarning, InputError
 from facecap.structures import Mesh
-from facecap.synth import load_ict_sample
+from facecap.io.ict_sample import load_ict_sample
 from facecap.synth.wrinkle_scan import subdivide_scan
 from facecap.synth.wrinkles import WRINKLE_EXPRESSIONS, add_wrinkles, place_wrinkles
 from facecap.wrinkles import remove_wrinkles, remove_wrinkles_arrays

@@ -3,7 +3,7 @@
 The anatomy is built from a small set of named skin points (glabella, pogonion,
 the mouth corners, ...). They come either from a JSON file (name -> vertex
 index or ``[x, y, z]`` point) or from the 68 iBUG/dlib facial landmarks, which
-the ICT-FaceKit topology carries (``facecap.synth.load_ict_sample().landmarks``).
+the ICT-FaceKit topology carries (``facecap.io.load_ict_sample().landmarks``).
 The named points are built from the 68 by the fixed rules of
 :data:`_CONSTRUCTION` (documented in ``docs/anatomy.md``) and snapped to the
 nearest scan vertex, so every landmark is a vertex of the skin.
@@ -242,7 +242,7 @@ def landmarks_from_ibug68(scan_mesh: Mesh, points68: Any, *, source: str = "") -
 
 
 def _is_ict_topology(scan_mesh: Mesh) -> bool:
-    from ..synth import load_ict_sample
+    from ..io.ict_sample import load_ict_sample
 
     sample = load_ict_sample().mesh
     n, m = sample.n_vertices, sample.faces.shape[0]
@@ -377,7 +377,7 @@ def anatomy_landmarks(scan_mesh: Mesh, landmarks: Any = None) -> AnatomyLandmark
                 "give a landmark JSON file (name -> vertex index or [x, y, z], or 'ibug68': [...])",
                 path=scan_mesh.source_path,
             )
-        from ..synth import load_ict_sample
+        from ..io.ict_sample import load_ict_sample
 
         return landmarks_from_ibug68(scan_mesh, load_ict_sample().landmarks)
     if isinstance(landmarks, dict):

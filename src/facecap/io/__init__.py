@@ -9,6 +9,9 @@ In the order a user meets them:
   gaps; :func:`write_markers` (``write_markers.py``) writes one.
 - :func:`read_correspondence` (``read_correspondence.py``): the marker -> scan
   map, and :func:`match_correspondence` to line it up with a take's labels.
+- :func:`load_ict_sample`, :func:`bundled_path` (``ict_sample.py``): the files facecap
+  ships, the ICT-FaceKit face region (as an :class:`IctSample`) and the AnimFace take,
+  read for the demo, the generator, the anatomy's ICT landmarks and the tests.
 - ``MESH_FORMATS``, ``MARKER_FORMATS`` and ``MAP_FORMATS``, beside their
   readers: the formats each reads, by suffix; ``facecap --help`` lists them.
 - :func:`write_mocap_correspondence` / :func:`read_mocap_correspondence`
@@ -105,8 +108,12 @@ from .write_usd_blendshapes import (DEFAULT_BLENDSHAPE_TOLERANCE_MM, DEFAULT_USD
                                     write_usd_blendshapes)
 from .weight_ranges import UnitRangeWeights, to_unit_range
 from .read_region_mask import read_region_mask
+from .ict_sample import IctSample, bundled_path, load_ict_sample
 
 __all__ = [
+    "load_ict_sample",
+    "bundled_path",
+    "IctSample",
     "write_gltf",
     "MAX_MORPH_TARGETS",
     "MORPH_GPU_BUDGET_BYTES",

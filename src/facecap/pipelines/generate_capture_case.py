@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..io.atomic_write import atomic_folder
 from ..synth.generate_performance import generate_performance, random_identity
-from ..synth.ict_sample import load_ict_sample
+from ..io.ict_sample import load_ict_sample
 
 __all__ = ["generate_capture_case"]
 

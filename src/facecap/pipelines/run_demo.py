@@ -50,7 +50,7 @@ from ..report.evaluate_result import evaluate_result, read_truth
 from ..structures import MarkerSequence, Mesh
 from ..synth import write_planned_scans
 from ..synth.generate_performance import generate_performance
-from ..synth.ict_sample import bundled_path, load_ict_sample
+from ..io.ict_sample import bundled_path, load_ict_sample
 from ..synth.wrinkles import every_wrinkle_at_once
 from ..synth.write_footage_case import write_footage_case
 from ..synth.write_synthetic_case import write_synthetic_case

@@ -2,8 +2,8 @@
 
 In the order a user meets them:
 
-- :func:`load_ict_sample`, :func:`bundled_path` (``ict_sample.py``): the
-  bundled ICT-FaceKit face region and AnimFace take, as an :class:`IctSample`.
+- (the bundled ICT-FaceKit face and AnimFace take it builds on are read by
+  :func:`facecap.io.load_ict_sample`)
 - :func:`generate_performance` (``generate_performance.py``): a take with
   dense ground truth, as a :class:`SyntheticCase`; :func:`named_curves` picks
   one of the :data:`CURVE_GENERATORS`, :data:`HEAD_PIVOTS_MM` are the head
@@ -64,7 +64,6 @@ from .generate_performance import (
     RANDOM_IDENTITY_SD,
 )
 from .capture_colors import capture_colors
-from .ict_sample import IctSample, bundled_path, load_ict_sample
 from .marker_layout import animface_marker_map, boundary_vertices, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, RealCurveFit, load_real_curve_fit, real_motion_curves
 from .rest_expression import RESTING_SHAPES, as_rest_weights, random_rest_expression
@@ -85,9 +84,6 @@ from .write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, FootageFiles, stag
 __all__ = [
     "random_identity",
     "RANDOM_IDENTITY_SD",
-    "load_ict_sample",
-    "bundled_path",
-    "IctSample",
     "generate_performance",
     "SyntheticCase",
     "named_curves",

@@ -17,7 +17,7 @@ from ..typing import FloatArray, IntArray
 from ..validate import as_count, as_positive, as_rigid_transform
 from .expression_curves import smooth_expression_curves
 from .smoothstep import smoothstep
-from .ict_sample import IctSample, load_ict_sample
+from ..io.ict_sample import IctSample, load_ict_sample
 from .marker_layout import animface_marker_map, choose_marker_vertices
 from .real_motion_curves import REAL_CURVE_NAMES, real_motion_curves
 from .rest_expression import as_rest_weights

@@ -12,7 +12,7 @@ from scipy.sparse.csgraph import dijkstra
 from ..errors import FileFormatError, InputError
 from ..typing import BoolArray, FloatArray, IntArray
 from ..validate import as_faces, as_positive, as_vertices
-from .ict_sample import bundled_path
+from ..io.ict_sample import bundled_path
 
 __all__ = ["animface_marker_map", "boundary_vertices", "choose_marker_vertices"]
 
@@ -140,7 +140,7 @@ def choose_marker_vertices(
 
     Examples
     --------
-    >>> from facecap.synth import load_ict_sample
+    >>> from ..io.ict_sample import load_ict_sample
     >>> s = load_ict_sample()
     >>> mv = choose_marker_vertices(s.mesh.vertices, s.mesh.faces, s.expression_deltas, 30, seed=1)
     >>> mv.shape, len(set(mv.tolist()))

@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import InputError
 from ..typing import FloatArray
 from ..validate import as_positive
-from .ict_sample import IctSample, load_ict_sample
+from ..io.ict_sample import IctSample, load_ict_sample
 
 __all__ = ["RESTING_SHAPES", "as_rest_weights", "random_rest_expression"]
 

@@ -255,7 +255,7 @@ def scan_expression(
 
     Examples
     --------
-    >>> from facecap.synth import load_ict_sample
+    >>> from ..io.ict_sample import load_ict_sample
     >>> face = load_ict_sample().mesh
     >>> scan = scan_expression(face.vertices, face.faces, target_vertices=20000, seed=1)
     >>> scan.mesh.n_vertices != face.n_vertices

@@ -25,7 +25,7 @@ from .smoothstep import smoothstep
 from ..mesh.resample_polyline import resample_polyline
 from ..mesh.nearest_on_polyline import nearest_on_polyline
 from ..mesh.vertex_normals import vertex_normals
-from .ict_sample import IctSample
+from ..io.ict_sample import IctSample
 
 __all__ = ["WrinkleCurves", "WrinkledPerformance", "WRINKLE_KINDS", "INFLUENCE_WIDTHS", "WRINKLE_EXPRESSIONS",
            "wrinkle_profile", "place_wrinkles", "wrinkle_activation", "wrinkle_heights", "wrinkle_expression_curves",

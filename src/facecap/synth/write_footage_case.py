@@ -16,7 +16,7 @@ from ..io.write_mesh import write_mesh
 from ..typing import FloatArray
 from ..mesh.vertex_normals import vertex_normals
 from .generate_performance import SyntheticCase, generate_performance
-from .ict_sample import IctSample, load_ict_sample
+from ..io.ict_sample import IctSample, load_ict_sample
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from .skin_albedo import SkinRegions, skin_albedo
 from .wrinkle_paint import PAINT_COLORS, paint_wrinkles

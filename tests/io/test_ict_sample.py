@@ -1,4 +1,4 @@
-"""Tests for facecap.synth.ict_sample: the bundled ICT face region and the AnimFace files."""
+"""Tests for facecap.io.ict_sample: the bundled ICT face region and the AnimFace files."""
 
 import json
 
@@ -8,12 +8,7 @@ import pytest
 from scipy.spatial import cKDTree
 
 from facecap.errors import InputError
-from facecap.synth.ict_sample import (
-    BUNDLED_FILES,
-    IctSample,
-    bundled_path,
-    load_ict_sample,
-)
+from facecap.io.ict_sample import BUNDLED_FILES, IctSample, bundled_path, load_ict_sample
 
 
 @pytest.fixture(scope="module")
