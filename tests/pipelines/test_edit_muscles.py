@@ -100,7 +100,9 @@ def test_interpolation_round_trip(case, tmp_path) -> None:
         # every frame on the joint: psi1-psi6 met (the ends' 1e-5 of the solve clipped away)
         jaw = JawConstraints.from_anatomy(load_anatomy(case.model_dir))
         assert max(jaw.violations(m).max() for m in bones["mandible"]) < 1e-9
-        assert max(jaw.violations(m).max() for m in before["mandible"]) > 1e-7  # (the solve's are not exact)
+        # (the solve's frames are on the joint only to its tolerance: 7.5e-8 to 1e-5 seen, so the clip is what
+        # puts the edited ones within 1e-9)
+        assert max(jaw.violations(m).max() for m in before["mandible"]) > 1e-8
     report = json.loads((out / "report.json").read_text())
     assert report["not_converged_frames"] == [] and max(report["inverted_tets"]) == 0
     assert report["jaw_violation_max"] < 1e-9
