@@ -250,7 +250,7 @@ def animate_scan(
         # per-frame product's numba loop loads cffi at its first call): on a small scan the set-up is done first
         mesh_check, timings["check_mesh_s"] = mesh_check_run.result()
         writers_import.result()
-        prepared, ring, centres, warp, face_markers, chosen, head_motion, loo = side
+        prepared, ring, centres, face_markers, chosen, head_motion, loo = side
         if not np.array_equal(prepared.constrained_vertices, planned):
             solver = ThinShellSolver(
                 scan.vertices, scan.faces, prepared.constrained_vertices,
@@ -317,11 +317,12 @@ def animate_scan(
     options = {"progress": progress, **(export_options or {})}
     # The USD rig's principal components (1 s at 700k vertices) need only the rig: computed on a second thread
     # while this one writes the rest of the result, and handed to the export at the end
-    usd_count = usd_shape_count(rig, options.get("usd_shapes", "auto")) if "usd" in exports else None
     with ThreadPoolExecutor(1) as beside_writing, \
             PerformanceWriter(out_dir, mesh=scan, rate=markers.rate, n_frames=T, exports=exports,
                               vertices=write_vertices, overwrite=overwrite, export_options=options) as writer:
-        usd_principal = beside_writing.submit(usd_principal_components, rig, usd_count) if "usd" in exports else None
+        usd_principal = (beside_writing.submit(usd_principal_components, rig,
+                                               usd_shape_count(rig, options.get("usd_shapes", "auto")))
+                         if "usd" in exports else None)
         writer.write_rig(rig, precision=rig_precision)
         if writer.needs_frames:
             writer.stream(lambda start, stop, out: solver.deform_into(disp32[start:stop], rest32, out),
@@ -390,7 +391,6 @@ class _MarkersSide(NamedTuple):
     prepared: PreparedMarkers
     ring: MarkerRing
     centres: np.ndarray
-    warp: TriharmonicWarp
     face_markers: np.ndarray
     chosen: RestPose
     head_motion: dict[str, Any]
@@ -426,7 +426,7 @@ def _markers_side(scan: Mesh, markers: MarkerSequence, correspondence: Correspon
     samples = _effective_samples(rest_average_s * markers.rate, rest_frame, markers.n_frames)
     ring, centres, warp, face_markers, chosen = _marker_side(scan, prepared, rest_markers, marker_offset_mm,
                                                               rest_pose, neutral_markers, noise_mm, samples)
-    return _MarkersSide(prepared, ring, centres, warp, face_markers, chosen, head_motion,
+    return _MarkersSide(prepared, ring, centres, face_markers, chosen, head_motion,
                         warp.leave_one_out_residuals())
 
 
