@@ -156,3 +156,28 @@ def test_ray_cast_one_shot_shapes_and_validation() -> None:
         ray_cast(V, F, np.zeros((3, 3)), np.ones((2, 3)))
     with pytest.raises(MeshError, match="out of range"):
         RayCaster(V, F + 100)
+
+
+def test_lit_finds_the_shadow_a_plate_casts_from_each_kind_of_light():
+    from facecap.cameras import Light
+
+    # a 20 x 20 mm plate at z = 50 over points on the plane z = 0; brute force: the segment to the light
+    # crosses the plate's square
+    plate_V = np.array([[-10.0, -10.0, 50.0], [10.0, -10.0, 50.0], [10.0, 10.0, 50.0], [-10.0, 10.0, 50.0]])
+    plate_F = np.array([[0, 1, 2], [0, 2, 3]])
+    caster = RayCaster(plate_V, plate_F)
+    g = np.linspace(-40.0, 40.0, 33)
+    P = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)
+    P = np.hstack([P, np.zeros((P.shape[0], 1))])
+    for light in (Light("point", position=[5.0, 0.0, 200.0]), Light("directional", direction=[-0.2, 0.1, -1.0]),
+                  Light("spot", position=[0.0, 5.0, 300.0], direction=[0.0, 0.0, -1.0], cone_deg=40.0)):
+        to_light, _ = light.arriving(P)
+        s = (50.0 - P[:, 2]) / to_light[:, 2]
+        crossing = P + s[:, None] * to_light
+        expected = ~((np.abs(crossing[:, 0]) < 10.0) & (np.abs(crossing[:, 1]) < 10.0))
+        lit = caster.lit(P, light, normals=np.tile([0.0, 0.0, 1.0], (P.shape[0], 1)))
+        near_edge = (np.abs(np.abs(crossing[:, 0]) - 10.0) < 1e-3) | (np.abs(np.abs(crossing[:, 1]) - 10.0) < 1e-3)
+        np.testing.assert_array_equal(lit[~near_edge], expected[~near_edge])
+        assert (~expected).sum() > 10  # the test sees a shadow
+    # a light between the point and the plate is not shadowed by the plate
+    assert caster.lit([[0.0, 0.0, 0.0]], Light("point", position=[0.0, 0.0, 20.0]))[0]

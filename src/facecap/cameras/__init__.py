@@ -27,8 +27,12 @@ centre of the top-left pixel, ``u`` right, ``v`` down.
   (PyAV) as a lazy :class:`Footage`; :func:`write_image_sequence`
   (``write_image_sequence.py``) and :func:`write_video` (``write_video.py``,
   lossless FFV1 or PNG by default) write footage.
+- :class:`Light` (``light.py``): a point, spot or directional light in the mocap frame, the direction
+  and irradiance it sends to each point; :class:`LightSetup`, :func:`read_light_file` and
+  :func:`write_light_file` (``light_file.py``): ``lights.json``, the stage's lights and ambient.
 - :class:`RayCaster` and :func:`ray_cast` (``ray_cast.py``): the point of the
-  (deformed) mesh each pixel sees (Embree), and which vertices a camera sees;
+  (deformed) mesh each pixel sees (Embree), which vertices a camera sees and
+  which points a light reaches (cast shadows);
   :func:`project_performance` (``project_performance.py``): every vertex of a
   performance in a view, with visibility.
 """
@@ -39,6 +43,8 @@ from .camera import DISTORTION_SIZES, Camera, PixelRays, Projection
 from .camera_file import CAMERA_FILE_FORMAT, CameraSetup, read_camera_file, write_camera_file
 from .footage import VIDEO_SUFFIXES, Footage, open_footage
 from .image_file import IMAGE_SUFFIXES, read_image, write_image
+from .light import LIGHT_KINDS, Light
+from .light_file import LIGHT_FILE_FORMAT, LightSetup, read_light_file, write_light_file
 from .image_to_float import image_to_float, linear_to_srgb, srgb_to_linear
 from .project_performance import PerformanceProjection, project_performance
 from .ray_cast import RayCaster, RayHits, ray_cast
@@ -77,6 +83,12 @@ __all__ = [
     "SEQUENCE_FILE",
     "write_video",
     "LOSSLESS_VIDEO_CODECS",
+    "Light",
+    "LIGHT_KINDS",
+    "LightSetup",
+    "LIGHT_FILE_FORMAT",
+    "read_light_file",
+    "write_light_file",
     "RayCaster",
     "RayHits",
     "ray_cast",

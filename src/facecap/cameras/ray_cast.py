@@ -27,6 +27,9 @@ __all__ = ["RayCaster", "RayHits", "ray_cast"]
 _NUDGE_RAD = 1e-6  # far above float32's 6e-8, far below a pixel's 4e-4 rad
 _SLIP_MM = 1e-3  # a nudged hit this much nearer means the original ray passed through the surface
 
+LIGHT_RAY_OFFSET_MM = 0.005
+"""Shadow rays start this far above the surface (:meth:`RayCaster.lit`)."""
+
 DEFAULT_OCCLUSION_TOLERANCE_MM = 0.01
 """A surface closer than this in front of a point does not hide it (float32 rounding of Embree, ~1e-4 mm)."""
 
@@ -284,6 +287,46 @@ class RayCaster:
             occluded = np.asarray(self._scene.run(origins, directions, dists=reach, query="OCCLUDED")) >= 0
             visible[rows] = ~occluded
         return visible.reshape(shape)
+
+    def lit(self, points: Any, light: Any, *, normals: Any = None, offset_mm: float = LIGHT_RAY_OFFSET_MM) -> BoolArray:
+        """Whether each point sees ``light``: no surface between it and the light (a cast shadow otherwise).
+
+        Parameters
+        ----------
+        points : (..., 3) array, mm
+            Points on the mesh, typically its vertices.
+        light : Light
+            :class:`facecap.cameras.Light` (point, spot or directional).
+        normals : (..., 3) array, optional
+            The surface's unit normals at the points: each ray starts ``offset_mm`` above the surface
+            along it, so that a point is not shadowed by its own triangles (a point facing away from the
+            light is still reported lit here: the cosine term, not this one, darkens it).
+        offset_mm : float, default 0.005
+            Far below any wrinkle, far above Embree's float32 rounding at face scale (about 1e-5 mm).
+
+        Returns
+        -------
+        (...) bool array
+            False where a surface lies between the point and the light.
+        """
+        X = np.asarray(points, dtype=np.float64)
+        shape = X.shape[:-1]
+        flat = X.reshape(-1, 3)
+        if normals is not None:
+            flat = flat + float(offset_mm) * np.asarray(normals, dtype=np.float64).reshape(-1, 3)
+        to_light, _ = light.arriving(flat)
+        reach = light.distance_to(flat)
+        reach = np.where(np.isfinite(reach), reach - float(offset_mm), np.float32(1e30))
+        good = np.all(np.isfinite(to_light), axis=1)
+        lit = np.ones(flat.shape[0], dtype=bool)
+        rows = np.flatnonzero(good)
+        if rows.size:
+            occluded = np.asarray(self._scene.run((flat[rows] - self._shift).astype(np.float32),
+                                                  to_light[rows].astype(np.float32),
+                                                  dists=np.maximum(reach[rows], 0).astype(np.float32),
+                                                  query="OCCLUDED")) >= 0
+            lit[rows] = ~occluded
+        return lit.reshape(shape)
 
     def visible_vertices(self, camera: Camera, *, tolerance_mm: float = DEFAULT_OCCLUSION_TOLERANCE_MM) -> BoolArray:
         """(n,) bool: the vertices ``camera`` sees (:meth:`visible` of ``V``)."""
