@@ -9,6 +9,8 @@ calls the solver packages (arrays in, arrays out), and writes the result through
   a result folder, as an :class:`AnimationResult`.
 - :func:`capture_wrinkles` (``capture_wrinkles.py``): ``facecap wrinkles``, the wrinkle layer
   (section 5) over a whole take on the frame runner, as a :class:`WrinkleCapture`.
+- :func:`capture_detail` (``capture_detail.py``): ``facecap detail``, fine detail by space-time
+  shape from shading (Lo et al.) on a result, on the frame runner, as a :class:`DetailCapture`.
 - The scan workflow of Huang et al. 2011, a command a step: :func:`plan_scans`
   (``plan_scans.py``): ``facecap plan-scans``, the frames to scan written as ``plan.json``
   (:func:`conditioned_take_path`: where the conditioned take is kept beside it);
@@ -71,6 +73,7 @@ from typing import Any
 _PUBLIC = {
     "animate_scan": ("animate_scan", "AnimationResult", "OFFSET_WARNING_MM"),
     "capture_wrinkles": ("capture_wrinkles", "WrinkleCapture"),
+    "capture_detail": ("capture_detail", "DetailCapture"),
     "plan_scans": ("plan_scans", "conditioned_take_path"),
     "register_planned_scans": ("register_planned_scans",),
     "blend_take": ("blend_take",),

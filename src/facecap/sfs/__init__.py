@@ -1,0 +1,1 @@
+"""Fine detail from video by space-time shape from shading (Lo et al.)."""

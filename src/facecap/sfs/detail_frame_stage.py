@@ -1,0 +1,269 @@
+"""One window of video frames of the detail layer, as a frame-runner stage (Lo et al. 3.2, 4.2).
+
+:class:`DetailFrameStage` is what ``facecap detail`` (:func:`facecap.pipelines.capture_detail`)
+runs on every chunk of video frames. For each frame of the chunk and of its halo
+(:data:`~facecap.sfs.solve_heights.TEMPORAL_REACH` frames each side, so that the
+temporal term sees the same neighbours inside a chunk as across chunks):
+
+1. the layer below at the frame's mocap time, carried into the mocap frame where
+   the cameras and lights are calibrated (the result's correspondence map, as the
+   wrinkle layer does), its normals, a ray caster;
+2. each camera's image read at the region's samples (:func:`~facecap.sfs.sample_footage`),
+   the lights' directions, falloff and cast shadows at them;
+3. observations removed where they cannot be trusted: on and around the markers
+   (painted dots, not skin), along the edge of a cast shadow (the layer below
+   puts it a little off), clipped highlights;
+4. the slow gain taken out (:class:`~facecap.sfs.SurfaceLowPass`);
+
+then the whole window is solved at once (:func:`~facecap.sfs.solve_heights`) and
+the chunk's frames kept.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..errors import InputError
+from ..typing import FloatArray
+from .sample_footage import sample_footage
+from .solve_heights import TEMPORAL_REACH, HeightWeights, ShadedFrame, shade_frame, solve_heights
+from .surface_low_pass import SurfaceLowPass
+from .vertex_gradient import vertex_gradient
+
+__all__ = ["DetailFrameStage", "DETAIL_DEFAULTS"]
+
+DETAIL_DEFAULTS: dict[str, Any] = {
+    "spatial": HeightWeights().spatial,
+    "temporal": HeightWeights().temporal,
+    "anchor": HeightWeights().anchor,
+    "sparsity_mm": HeightWeights().sparsity_mm,
+    "iterations": 3,
+    "gain_sigma_mm": 4.0,
+    "marker_patch_mm": 5.0,
+    "shadow_edge_rings": 2,
+}
+"""The stage's options and their defaults (``detail.json`` records the values used)."""
+
+
+class DetailFrameStage:
+    """The per-window work of the detail layer (picklable, deterministic).
+
+    Parameters
+    ----------
+    result_dir : str
+        The layer below (an ``animate``, ``blend``, ``solve-muscles`` or ``wrinkles`` result).
+    cameras : sequence of Camera
+    footage : sequence of str
+        One footage per camera.
+    lights : mapping
+        ``LightSetup.describe()`` (lights.json as a dict, mm).
+    mocap_frames : (V,) float array
+        The mocap frame of each video frame.
+    region : (r,) int array
+        The scan's vertices the detail is solved at.
+    albedo : (r,) float array
+    k_s, alpha : float
+    transfer : {'linear', 'srgb'}
+        How the footage encodes light.
+    options : mapping, optional
+        :data:`DETAIL_DEFAULTS`' keys.
+    """
+
+    def __init__(self, result_dir: str, cameras: Sequence[Any], footage: Sequence[str], lights: Mapping[str, Any],
+                 mocap_frames: Any, region: Any, albedo: Any, k_s: float, alpha: float, transfer: str,
+                 options: Mapping[str, Any] | None = None) -> None:
+        self.result_dir = str(result_dir)
+        self.cameras = list(cameras)
+        self.footage = [str(p) for p in footage]
+        self.lights = dict(lights)
+        self.mocap_frames = np.asarray(mocap_frames, dtype=np.float64)
+        self.region = np.asarray(region, dtype=np.int64)
+        self.albedo = np.asarray(albedo, dtype=np.float64)
+        self.k_s, self.alpha = float(k_s), float(alpha)
+        if transfer not in ("linear", "srgb"):
+            raise InputError(f"transfer: expected 'linear' or 'srgb', got {transfer!r}")
+        self.transfer = transfer
+        unknown = set(options or {}) - set(DETAIL_DEFAULTS)
+        if unknown:
+            raise InputError(f"options: unknown {sorted(unknown)} (known: {sorted(DETAIL_DEFAULTS)})")
+        self.options = {**DETAIL_DEFAULTS, **dict(options or {})}
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {k: v for k, v in self.__dict__.items() if not k.startswith("_")}
+
+    # -- per-process caches ------------------------------------------------------------------------------
+    def _result(self) -> tuple[Any, dict[str, np.ndarray]]:
+        opened = getattr(self, "_opened", None)
+        if opened is None:
+            from ..io.mocap_correspondence import read_mocap_correspondence
+            from ..io.read_result import read_result
+
+            correspondence = read_mocap_correspondence(Path(self.result_dir) / "correspondence.npz")
+            opened = self._opened = (read_result(self.result_dir), correspondence)
+        return opened
+
+    def light_setup(self) -> Any:
+        from ..cameras import Light, LightSetup
+
+        setup = getattr(self, "_light_setup", None)
+        if setup is None:
+            lights = tuple(Light(e["type"], e.get("intensity", 1.0), e.get("position"), e.get("direction"),
+                                 e.get("cone_deg"), e.get("penumbra_deg", 5.0), e.get("name", ""))
+                           for e in self.lights["lights"])
+            setup = self._light_setup = LightSetup(lights, self.lights.get("ambient", 0.0))
+        return setup
+
+    def image(self, camera_index: int, video_frame: int) -> np.ndarray:
+        """A footage frame as linear light in [0, 1] (float32)."""
+        from ..cameras import image_to_float, open_footage, srgb_to_linear
+
+        clips = self.__dict__.setdefault("_clips", {})
+        if camera_index not in clips:
+            clips[camera_index] = open_footage(self.footage[camera_index])
+        image = image_to_float(clips[camera_index].frame(video_frame))
+        return srgb_to_linear(np.clip(image, 0.0, 1.0)) if self.transfer == "srgb" else image
+
+    def _region_mesh(self) -> tuple[np.ndarray, sp.csr_matrix]:
+        """The triangles inside the region (reindexed) and the region's one-ring adjacency."""
+        cached = getattr(self, "_region_faces", None)
+        if cached is None:
+            result = self._result()[0]
+            F = result.mesh.faces
+            index = np.full(result.n_vertices, -1, dtype=np.int64)
+            index[self.region] = np.arange(self.region.size)
+            inside = np.all(index[F] >= 0, axis=1)
+            faces = index[F[inside]]
+            r = self.region.size
+            i = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
+            j = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
+            adjacency = sp.csr_matrix((np.ones(i.size), (np.r_[i, j], np.r_[j, i])), shape=(r, r))
+            adjacency.data[:] = 1.0
+            cached = self._region_faces = (faces, adjacency)
+        return cached
+
+    def _low_pass(self) -> SurfaceLowPass:
+        low = getattr(self, "_low", None)
+        if low is None:
+            result = self._result()[0]
+            faces, _ = self._region_mesh()
+            low = self._low = SurfaceLowPass(result.mesh.vertices[self.region], faces, self.options["gain_sigma_mm"])
+        return low
+
+    # -- one frame ---------------------------------------------------------------------------------------
+    def large_scale(self, video_frame: int) -> FloatArray:
+        """The layer below (face frame, mm) at a video frame's mocap time (linear between mocap frames)."""
+        from ..units import mm_per_unit
+
+        result = self._result()[0]
+        position = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
+        lo = int(np.floor(position))
+        hi = min(lo + 1, result.n_frames - 1)
+        block = result.frames(lo, hi + 1).astype(np.float64) * float(mm_per_unit(result.units))
+        weight = position - lo
+        return block[0] if hi == lo or weight == 0 else (1 - weight) * block[0] + weight * block[-1]
+
+    def mocap_vertices(self, video_frame: int) -> tuple[FloatArray, FloatArray]:
+        """The layer below at a video frame: in the face's frame and carried into the mocap frame (mm)."""
+        from ..wrinkles.wrinkle_frame_stage import large_scale_in_mocap
+
+        result, correspondence = self._result()
+        at = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
+        A = self.large_scale(video_frame)
+        return A, large_scale_in_mocap(A, correspondence, at)
+
+    def observe(self, video_frame: int, *, gain: bool = True, gradient: Any = None) -> tuple[ShadedFrame, dict[str, Any]]:
+        """One frame of the region as the cameras and lights see the layer below.
+
+        Returns the frame (its ``gradient`` the one given, or this frame's) and what was found on the way:
+        ``world`` (r, 3) the samples in the mocap frame, ``clipped`` (C, r), ``seen`` (C, r) before the
+        removals, ``gain`` (r,) the slow gain taken out (1 without ``gain``).
+        """
+        from ..cameras import RayCaster
+        from ..mesh.vertex_normals import vertex_normals
+
+        result = self._result()[0]
+        F = result.mesh.faces
+        at = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
+        A, X = self.mocap_vertices(video_frame)
+        caster = RayCaster(X, F)
+        region = self.region
+        N = vertex_normals(X, F, region)
+        P = X[region]
+        visible = [caster.visible(P, camera) for camera in self.cameras]
+        images = [self.image(c, video_frame) for c in range(len(self.cameras))]
+        samples = sample_footage(images, self.cameras, P, N, visible)
+        weight = samples.weight.copy()
+        setup = self.light_setup()
+        to_light, irradiance, lit_all = [], [], []
+        for light in setup.lights:
+            direction, E = light.arriving(P)
+            lit = caster.lit(P, light, normals=N)
+            to_light.append(direction)
+            irradiance.append(E * lit)
+            lit_all.append(lit)
+        _, adjacency = self._region_mesh()
+        edge = np.zeros(region.size, dtype=bool)
+        for lit in lit_all:  # samples whose one-ring holds both lit and shadowed samples, grown by rings
+            lit_f = lit.astype(np.float64)
+            band = ((adjacency @ lit_f) > 0) & ((adjacency @ (1.0 - lit_f)) > 0)
+            for _ in range(int(self.options["shadow_edge_rings"]) - 1):
+                band = band | ((adjacency @ band.astype(np.float64)) > 0)
+            edge |= band
+        weight[:, edge] = 0.0
+        if result.markers is not None and self.options["marker_patch_mm"] > 0:
+            from scipy.spatial import cKDTree
+            from ..units import mm_per_unit
+
+            frame = int(round(at))
+            markers = np.asarray(result.markers[frame], dtype=np.float64) * float(mm_per_unit(result.units))
+            markers = markers[np.all(np.isfinite(markers), axis=1)]
+            if markers.size:
+                near = cKDTree(markers).query(A[region], distance_upper_bound=self.options["marker_patch_mm"])[0]
+                weight[:, np.isfinite(near)] = 0.0
+        if gradient is None:
+            gradient = vertex_gradient(X, F, rows=region, columns=region)
+        frame = ShadedFrame(N, gradient, np.stack(to_light), np.stack(irradiance), samples.to_eye,
+                            samples.intensity, weight)
+        slow = np.ones(region.size)
+        if gain:
+            predicted, _, _ = shade_frame(frame, np.zeros(region.size), self.albedo, self.k_s, self.alpha,
+                                          setup.ambient)
+            ok = (weight > 0) & (predicted > 1e-9)
+            ratio = np.where(ok, samples.intensity / np.where(ok, predicted, 1.0), 0.0)
+            w = np.where(ok, weight, 0.0)
+            total = w.sum(axis=0)
+            mean_ratio = np.where(total > 0, (w * ratio).sum(axis=0) / np.maximum(total, 1e-300), 1.0)
+            slow = self._low_pass()(mean_ratio, total)
+            slow = np.where(np.isfinite(slow) & (slow > 1e-6), slow, 1.0)
+            frame = frame._replace(intensity=samples.intensity / slow[None])
+        found = {"world": P, "clipped": samples.clipped, "seen": samples.weight > 0, "gain": slow}
+        return frame, found
+
+    def parameters(self) -> dict[str, Any]:
+        """What the frames depend on (the runner refuses to resume a run with other values)."""
+        return {"result_dir": self.result_dir, "cameras": [c.name for c in self.cameras], "footage": self.footage,
+                "lights": self.lights, "mocap_frames": self.mocap_frames.tolist(),
+                "region": [int(self.region.size), int(self.region.sum())],
+                "albedo": float(np.round(self.albedo.sum(), 6)), "k_s": self.k_s, "alpha": self.alpha,
+                "transfer": self.transfer, "options": self.options}
+
+    def __call__(self, start: int, stop: int, state: Any) -> tuple[dict[str, np.ndarray], None]:
+        n_video = self.mocap_frames.size
+        first, last = max(start - TEMPORAL_REACH, 0), min(stop + TEMPORAL_REACH, n_video)
+        # one gradient operator per window, of its middle frame: the skin's metric changes little in half a second
+        _, X = self.mocap_vertices((first + last - 1) // 2)
+        gradient = vertex_gradient(X, self._result()[0].mesh.faces, rows=self.region, columns=self.region)
+        frames = [self.observe(j, gradient=gradient)[0] for j in range(first, last)]
+        o = self.options
+        weights = HeightWeights(o["spatial"], o["temporal"], o["anchor"], o["sparsity_mm"])
+        solve = solve_heights(frames, albedo=self.albedo, k_s=self.k_s, alpha=self.alpha,
+                              ambient=self.light_setup().ambient, weights=weights, iterations=o["iterations"])
+        keep = slice(start - first, stop - first)
+        return {"heights": solve.heights[keep].astype(np.float32),
+                "residual": solve.residual[keep].astype(np.float32),
+                "residual_before": solve.residual_before[keep].astype(np.float32)}, None
