@@ -695,6 +695,70 @@ def _cmd_wrinkles(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_detail(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "detail",
+        help="add fine detail from footage by space-time shape from shading (Lo et al.) to a result",
+        description="Shade the layer below (an animate, blend, solve-muscles or wrinkles result) with the stage's "
+        "calibrated lights, and solve the heights along its normals that make every camera's footage match, "
+        "over windows of video frames on the frame runner; writes a result folder like the layer's plus "
+        "detail.json.",
+    )
+    p.add_argument("--result", required=True,
+                   help="the layer below: an animate, blend, solve-muscles or wrinkles result folder")
+    p.add_argument("--cameras", required=True, nargs="+",
+                   help="the facecap camera file (cameras.json), or one OpenCV calibration YAML per camera in --video order")
+    p.add_argument("--video", required=True, nargs="+", help="one image folder or video file per camera")
+    p.add_argument("--lights", required=True, help="the stage's lights, lights.json (docs/cameras.md, Lights)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--video-rate", type=float, default=None, help="footage rate in Hz [the camera file's]")
+    p.add_argument("--first-mocap-frame", type=float, default=None,
+                   help="mocap frame of video frame 0 [the camera file's, else 0]")
+    p.add_argument("--regions", default=None,
+                   help="restrict the detail to these vertices: a JSON list of indices or a .npy bool mask "
+                        "[the face every camera sees well and a light reaches]")
+    p.add_argument("--transfer", choices=("auto", "linear", "srgb"), default="auto",
+                   help="how the footage encodes light [auto: 8-bit files sRGB, 16-bit and float linear]")
+    p.add_argument("--uniform-albedo", action="store_true",
+                   help="one albedo for the region, as the paper does, instead of one per sample from the rest frame")
+    p.add_argument("--camera-units", default="mm", help="unit of T in OpenCV calibration files [mm]")
+    p.add_argument("--scheduler", default=None,
+                   help="Dask scheduler address for an existing cluster; 'local' for a local cluster of --workers "
+                        "processes [run in this process]")
+    p.add_argument("--workers", type=int, default=2, help="processes of a local cluster [2]")
+    p.add_argument("--work", default=None, help="resumable work folder (kept; a rerun resumes) [a temporary one]")
+    p.add_argument("--export", default="", help="exports, comma-separated, as for animate")
+    _add_export_frame(p)
+    _add_overwrite(p)
+    p.set_defaults(func=_cmd_detail)
+
+
+def _cmd_detail(args: argparse.Namespace) -> int:
+    from .cameras import read_footage_cameras, read_light_file
+    from .io.result_layout import parse_export_formats
+    from .pipelines import capture_detail
+
+    if args.workers < 1:
+        raise FacecapError("--workers must be >= 1")
+    lights = read_light_file(args.lights)  # before any long work
+    cameras, rate, first = read_footage_cameras(args.cameras, args.video, unit=args.camera_units)
+    rate = args.video_rate if args.video_rate is not None else rate
+    if rate is None:
+        raise FacecapError("--video-rate: the calibration files give no footage rate; give it in Hz")
+    first = args.first_mocap_frame if args.first_mocap_frame is not None else first
+    scheduler = "synchronous" if args.scheduler is None else (None if args.scheduler == "local" else args.scheduler)
+    done = capture_detail(args.result, cameras, args.video, lights, args.out, video_rate_hz=rate,
+                          first_mocap_frame=first, regions=args.regions, transfer=args.transfer,
+                          per_sample_albedo=not args.uniform_albedo, scheduler=scheduler, n_workers=args.workers,
+                          work_dir=args.work, exports=parse_export_formats(args.export), progress=not args.quiet,
+                          export_options={"export_frame": args.export_frame}, overwrite=args.overwrite)
+    if not args.quiet:
+        t = done.timings
+        print(f"wrote {done.out_dir}: detail on {done.n_video_frames} video frames over {done.region_vertices} "
+              f"vertices (shape from shading {t['shape_from_shading_s']:.1f} s)")
+    return 0
+
+
 def _add_remove_wrinkles(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("remove-wrinkles",
                        help="smooth the wrinkles out of a neutral scan in a region, keeping its fine detail "
@@ -923,6 +987,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_scan_commands(sub)
     _add_synth(sub)
     _add_wrinkles(sub)
+    _add_detail(sub)
     _add_remove_wrinkles(sub)
     _add_build_anatomy(sub)
     _add_solve_muscles(sub)
