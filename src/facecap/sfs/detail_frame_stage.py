@@ -141,7 +141,7 @@ class DetailFrameStage:
             r = self.region.size
             i = np.concatenate([faces[:, 0], faces[:, 1], faces[:, 2]])
             j = np.concatenate([faces[:, 1], faces[:, 2], faces[:, 0]])
-            adjacency = sp.csr_matrix((np.ones(i.size), (np.r_[i, j], np.r_[j, i])), shape=(r, r))
+            adjacency = sp.csr_matrix((np.ones(2 * i.size), (np.r_[i, j], np.r_[j, i])), shape=(r, r))
             adjacency.data[:] = 1.0
             cached = self._region_faces = (faces, adjacency)
         return cached

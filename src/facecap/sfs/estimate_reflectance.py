@@ -53,8 +53,8 @@ class Reflectance(NamedTuple):
 
 
 def _parts(frames: Sequence[ShadedFrame], alpha: float, ambient: float) -> tuple[FloatArray, ...]:
-    """Per observation (frames x cameras, samples): I, relative weight, D, S."""
-    I, W, D, S = [], [], [], []
+    """Per observation (frames x cameras, samples): I, relative weight (``w / I^2``), D, S, the weight ``w``."""
+    I, W, D, S, plain = [], [], [], [], []
     for f in frames:
         for c in range(f.to_eye.shape[0]):
             shading = phong_shading(f.normals, f.to_light, f.irradiance, f.to_eye[c], albedo=1.0, k_s=1.0,
@@ -62,9 +62,10 @@ def _parts(frames: Sequence[ShadedFrame], alpha: float, ambient: float) -> tuple
             I.append(f.intensity[c])
             floor = 0.02 * max(float(np.median(f.intensity[c][f.weight[c] > 0])) if np.any(f.weight[c] > 0) else 1, 1e-9)
             W.append(f.weight[c] / np.maximum(f.intensity[c], floor) ** 2)
+            plain.append(f.weight[c])
             D.append(shading.diffuse)
             S.append(shading.specular)
-    return np.array(I), np.array(W), np.array(D), np.array(S)
+    return np.array(I), np.array(W), np.array(D), np.array(S), np.array(plain)
 
 
 def estimate_reflectance(frames: Sequence[ShadedFrame], *, ambient: float = 0.0, per_sample: bool = True,
@@ -103,7 +104,7 @@ def estimate_reflectance(frames: Sequence[ShadedFrame], *, ambient: float = 0.0,
     groups = np.zeros(r, dtype=np.int64) if (per_sample or labels is None) else np.asarray(labels, dtype=np.int64)
     best = None
     for alpha in (exponents if specular else (float(exponents[0]),)):
-        I, W, D, S = _parts(frames, float(alpha), ambient)
+        I, W, D, S, plain = _parts(frames, float(alpha), ambient)
         if not np.any(W > 0):
             raise InputError("no sample of the rest frame is seen by any camera")
         if not specular:
@@ -128,7 +129,7 @@ def estimate_reflectance(frames: Sequence[ShadedFrame], *, ambient: float = 0.0,
         k_s = max(top / bottom, 0.0) if (specular and bottom > 1e-300) else 0.0
         albedo = np.where(ok, (Sid - k_s * Sds) * inv, np.nan)
         res = I - albedo[None] * D - k_s * S
-        rms = float(np.sqrt(np.nansum(W * res * res) / max(np.sum(W[:, ok]), 1e-300)))
+        rms = float(np.sqrt(np.nansum(W * res * res) / max(np.sum(plain[:, ok]), 1e-300)))
         if best is None or rms < best.residual:
             best = Reflectance(albedo, float(k_s), float(alpha), rms, bool(per_sample))
     assert best is not None
