@@ -60,7 +60,8 @@ def _transfer_of(image: np.ndarray, transfer: str, where: str) -> str:
 def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], footage: Sequence[Any], lights: Any,
                    out_dir: str | os.PathLike[str], *, video_rate_hz: float | None = None,
                    first_mocap_frame: float = 0.0, regions: Any = None, transfer: str = "auto",
-                   per_sample_albedo: bool = True, scheduler: str | None = "synchronous", n_workers: int = 2,
+                   per_sample_albedo: bool = True, specular: bool = True,
+                   scheduler: str | None = "synchronous", n_workers: int = 2,
                    work_dir: Any = None, exports: Sequence[str] = (), chunk_frames: int = CHUNK_VIDEO_FRAMES,
                    progress: bool = False, options: Mapping[str, Any] | None = None,
                    export_options: Mapping[str, Any] | None = None, overwrite: bool = False) -> DetailCapture:
@@ -88,6 +89,9 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
     per_sample_albedo : bool, default True
         An albedo per sample from the rest frame (freckles, moles and brows are not shading); False: one per
         region as the paper does.
+    specular : bool, default True
+        Fit and shade Phong's specular lobe; False: Lambertian (the single-frame baseline of the paper's Fig. 9,
+        with ``options={'temporal': 0}`` and ``per_sample_albedo=False``).
     scheduler, n_workers, work_dir, chunk_frames, progress
         The frame runner's (:func:`~facecap.runner.run_frames`).
     exports : sequence of str, default ()
@@ -175,7 +179,8 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                               irradiance=frame.irradiance[:, region], to_eye=frame.to_eye[:, region],
                               intensity=frame.intensity[:, region], weight=frame.weight[:, region])
 
-    reflectance = estimate_reflectance([restricted(rest)], ambient=setup.ambient, per_sample=per_sample_albedo)
+    reflectance = estimate_reflectance([restricted(rest)], ambient=setup.ambient, per_sample=per_sample_albedo,
+                                       specular=specular)
     timings["region_and_reflectance_s"] = time.perf_counter() - t
     stage = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup.describe(), mocap_frames, region,
                              reflectance.albedo, reflectance.k_s, reflectance.alpha, encoding, options)
@@ -213,6 +218,7 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                 "method": "lo-spacetime-shape-from-shading", "units": "mm",
                 "reflectance": {"k_s": reflectance.k_s, "alpha": reflectance.alpha,
                                 "albedo": "per sample (rest frame)" if per_sample_albedo else "uniform",
+                                "specular": bool(specular),
                                 "albedo_median": float(np.median(reflectance.albedo)),
                                 "rest_residual": reflectance.residual},
                 "transfer": encoding, "region_vertices": int(region.size), "clipped_share": clipped,
