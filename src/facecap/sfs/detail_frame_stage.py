@@ -176,7 +176,8 @@ class DetailFrameStage:
         A = self.large_scale(video_frame)
         return A, large_scale_in_mocap(A, correspondence, at)
 
-    def observe(self, video_frame: int, *, gain: bool = True, gradient: Any = None) -> tuple[ShadedFrame, dict[str, Any]]:
+    def observe(self, video_frame: int, *, gain: bool = True,
+                gradient: Any = None) -> tuple[ShadedFrame, dict[str, Any]]:
         """One frame of the region as the cameras and lights see the layer below.
 
         Returns the frame (its ``gradient`` the one given, or this frame's) and what was found on the way:

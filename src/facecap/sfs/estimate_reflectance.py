@@ -60,7 +60,8 @@ def _parts(frames: Sequence[ShadedFrame], alpha: float, ambient: float) -> tuple
             shading = phong_shading(f.normals, f.to_light, f.irradiance, f.to_eye[c], albedo=1.0, k_s=1.0,
                                     alpha=alpha, ambient=ambient)
             I.append(f.intensity[c])
-            floor = 0.02 * max(float(np.median(f.intensity[c][f.weight[c] > 0])) if np.any(f.weight[c] > 0) else 1, 1e-9)
+            seen = f.weight[c] > 0
+            floor = 0.02 * max(float(np.median(f.intensity[c][seen])) if np.any(seen) else 1.0, 1e-9)
             W.append(f.weight[c] / np.maximum(f.intensity[c], floor) ** 2)
             plain.append(f.weight[c])
             D.append(shading.diffuse)

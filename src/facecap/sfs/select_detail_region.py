@@ -19,10 +19,12 @@ from ..typing import BoolArray
 __all__ = ["select_detail_region", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS"]
 
 MIN_VIEW_WEIGHT = 0.5
-"""The least observation weight (:func:`~facecap.sfs.sample_footage`) every camera must give a sample: about 60 degrees."""
+"""The least observation weight (:func:`~facecap.sfs.sample_footage`) every camera must give a sample
+(a view about 60 degrees from the normal)."""
 
 MIN_LIGHT_SHARE = 0.1
-"""The least direct irradiance on the surface, as a share of the region's 95th percentile (shadowed skin is left out)."""
+"""The least direct irradiance on the surface, as a share of the region's 95th percentile (shadowed skin is
+left out)."""
 
 BOUNDARY_RINGS = 3
 """Rings of vertices next to the mesh's open edges left out."""
