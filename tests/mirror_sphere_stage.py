@@ -1,8 +1,8 @@
 """A capture stage with a chrome sphere for the light calibration's tests: cameras, a light, sphere positions.
 
 Realistic geometry: two cameras 600-900 mm from the face (at the origin), 20-35 degrees either side, 640x480
-with a 1100-1300 px focal length (about 0.6 mm a pixel at the face) and some barrel distortion; a light 1-1.5 m
-away, above and to one side; an 80 mm chrome ball (radius 40 mm) held at a few places within 150 mm of the face.
+with a 1000-1200 px focal length (about 0.65 mm a pixel at the face) and some barrel distortion; a light 1-1.5 m
+away, above and to one side; an 80 mm chrome ball (radius 40 mm) held at a few places up to 150 mm from the face, wholly in view.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ def stage(seed: int, *, n_positions: int = 5, light_kind: str = "point", size=(6
         eye = distance * np.array([np.sin(yaw) * np.cos(pitch), np.sin(pitch), np.cos(yaw) * np.cos(pitch)])
         target = rng.uniform(-20, 20, 3)
         k1 = rng.uniform(-0.15, 0.0)
-        cameras.append(Camera.look_at(f"cam{k}", eye, target, focal_px=rng.uniform(1100, 1300) * size[0] / 640,
+        cameras.append(Camera.look_at(f"cam{k}", eye, target, focal_px=rng.uniform(1000, 1200) * size[0] / 640,
                                       width=size[0], height=size[1], distortion=[k1, 0.5 * k1 ** 2, 0, 0]))
     # the light: 1-1.5 m from the face, 25-55 degrees to one side and 15-40 degrees up, in front
     yaw = np.radians(rng.choice([-1, 1]) * rng.uniform(25, 55))
@@ -50,9 +50,13 @@ def stage(seed: int, *, n_positions: int = 5, light_kind: str = "point", size=(6
     else:
         light = Light("point", position=rng.uniform(1000, 1500) * towards)
     positions = [np.zeros(3)]
-    while len(positions) < n_positions:
-        p = rng.uniform(-150, 150, 3) * np.array([1.0, 1.0, 0.5])
-        if min(np.linalg.norm(p - q) for q in positions) > 100:
+    while len(positions) < n_positions:  # spread over the capture volume, the whole sphere in every view
+        p = rng.uniform(-150, 150, 3) * np.array([1.0, 0.8, 0.5])
+        seen = [camera.project(p) for camera in cameras]
+        margin = [1.3 * SPHERE_RADIUS_MM * camera.K[0, 0] / s.depth + 12 for camera, s in zip(cameras, seen)]
+        inside = all(m < s.pixels[0] < camera.width - m and m < s.pixels[1] < camera.height - m
+                     for camera, s, m in zip(cameras, seen, margin))
+        if inside and min(np.linalg.norm(p - q) for q in positions) > 80:
             positions.append(p)
     return Stage(cameras, light, np.array(positions))
 

@@ -109,6 +109,8 @@ class LightCalibration(NamedTuple):
         angle from the light's reversed direction times 1 m).
     spread_deg : float
         The largest angle between two reflected rays.
+    covariance_mm2 : (3, 3) float64 array, mm^2
+        The point light's covariance (see the module notes); inf for a directional light.
     sigma_mm : (3,) float64 array, mm
         Standard deviations of the point light along the principal axes of its
         covariance, largest first (the first is nearly its depth); inf for a directional light.
@@ -129,6 +131,7 @@ class LightCalibration(NamedTuple):
     ray_directions: FloatArray
     ray_distances_mm: FloatArray
     spread_deg: float
+    covariance_mm2: FloatArray
     sigma_mm: FloatArray
     direction_sigma_deg: float
     weak: str
@@ -161,6 +164,10 @@ def _outline(grey: FloatArray, where: str) -> tuple[Any, np.ndarray]:
     if count < 2:
         raise InputError(f"{where}: no sphere found (no region brighter than the backdrop)")
     largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    x, y, bw, bh = (int(stats[largest, k]) for k in (cv2.CC_STAT_LEFT, cv2.CC_STAT_TOP, cv2.CC_STAT_WIDTH,
+                                                     cv2.CC_STAT_HEIGHT))
+    if x == 0 or y == 0 or x + bw == grey.shape[1] or y + bh == grey.shape[0]:
+        raise InputError(f"{where}: the sphere (the largest bright region) touches the image's edge; frame it wholly")
     blob = (labels == largest).astype(np.uint8)
     contours, _ = cv2.findContours(blob, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     contour = max(contours, key=len)
@@ -466,6 +473,7 @@ def calibrate_light(
     weak = ""
     X = None
     sigma_mm = np.full(3, np.inf)
+    X_cov = np.full((3, 3), np.inf)
     if eig[0] > 1e-10 * len(R):
         X = np.linalg.solve(A, np.einsum("nij,nj->i", Q, P))
         L = np.einsum("nj,nj->n", X - P, R)
@@ -490,4 +498,4 @@ def calibrate_light(
         light = Light("directional", intensity=intensity, direction=-mean_direction)
         distances = np.sin(ray_angles) * 1000.0
     return LightCalibration(light, centres, centre_sigma, outlines_out, edge_rms, highlights, P, R, distances,
-                            spread, sigma_mm, direction_sigma, weak)
+                            spread, X_cov, sigma_mm, direction_sigma, weak)

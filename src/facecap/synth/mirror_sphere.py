@@ -74,8 +74,8 @@ def _emitter_hit(origins: FloatArray, directions: FloatArray, light: Any, bulb_r
     return (t > 0) & on_disc & inside_cone
 
 
-def _sphere_box(camera: Any, centre: FloatArray, radius: float) -> tuple[int, int, int, int] | None:
-    """The pixel box (u0, v0, u1, v1), inclusive, that holds the sphere's image, padded by 2 px; None if unseen."""
+def _sphere_box(camera: Any, centre: FloatArray, radius: float, *, pad_px: int) -> tuple[int, int, int, int] | None:
+    """The pixel box (u0, v0, u1, v1), inclusive, that holds the sphere's image, padded; None if unseen."""
     k = np.arange(4000) + 0.5  # Fibonacci points on the sphere: its image's extent to well under a pixel
     z = 1 - 2 * k / 4000
     phi = np.pi * (1 + 5 ** 0.5) * k
@@ -84,8 +84,8 @@ def _sphere_box(camera: Any, centre: FloatArray, radius: float) -> tuple[int, in
     seen = camera.project(points)
     if not np.all(seen.in_front):
         raise InputError(f"camera {camera.name!r}: the sphere is not wholly in front of the camera")
-    u0, v0 = np.floor(seen.pixels.min(axis=0)).astype(int) - 2
-    u1, v1 = np.ceil(seen.pixels.max(axis=0)).astype(int) + 2
+    u0, v0 = np.floor(seen.pixels.min(axis=0)).astype(int) - pad_px
+    u1, v1 = np.ceil(seen.pixels.max(axis=0)).astype(int) + pad_px
     u0, v0 = max(u0, 0), max(v0, 0)
     u1, v1 = min(u1, camera.width - 1), min(v1, camera.height - 1)
     if u0 > u1 or v0 > v1:
@@ -135,8 +135,8 @@ def render_mirror_sphere(
         Samples per pixel along each axis (box filter); >= 1.
     blur_px : float, default 0.7
         The lens's point spread, a Gaussian's standard deviation in px, applied to
-        the radiance before the sensor clips it (a saturated highlight keeps an
-        unsaturated skirt, as through a real lens); 0 for none.
+        the radiance before the pixels integrate it and the sensor clips it (a
+        saturated highlight keeps an unsaturated skirt, as through a real lens); 0 for none.
     rng : numpy.random.Generator or None, default None
         Sensor noise (:func:`~facecap.synth.sensor_noise`) when given; none otherwise.
     bits : {8, 16}, default 8
@@ -177,7 +177,7 @@ def render_mirror_sphere(
     for camera in cameras:
         linear = np.empty((camera.height, camera.width, 3))
         linear[:] = background * _TINT
-        box = _sphere_box(camera, centre, radius)
+        box = _sphere_box(camera, centre, radius, pad_px=2 + int(np.ceil(4 * max(blur_px, 0.0))))
         if box is not None:
             u0, v0, u1, v1 = box
             u = (np.arange(u0, u1 + 1)[:, None] + offsets[None, :]).ravel()
@@ -198,10 +198,11 @@ def render_mirror_sphere(
             seen[_emitter_hit(P, r, light, bulb_radius_mm, sun_radius_deg)] = bulb_radiance
             value[hit] = reflectance * seen
             h, w = v1 - v0 + 1, u1 - u0 + 1
+            value = value.reshape(h * s, w * s, 3)
+            if blur_px > 0:  # the lens's spread comes before the pixel's area: a spot's sub-pixel place survives
+                value = cv2.GaussianBlur(value, (0, 0), float(blur_px) * s, borderType=cv2.BORDER_REPLICATE)
             value = value.reshape(h, s, w, s, 3).mean(axis=(1, 3))
             linear[v0:v1 + 1, u0:u1 + 1] = value
-        if blur_px > 0:
-            linear = cv2.GaussianBlur(linear, (0, 0), float(blur_px))
         if rng is not None:
             linear = sensor_noise(linear, rng=rng)
         linear = np.clip(linear, 0.0, 1.0)
