@@ -46,7 +46,7 @@ from .camera import DISTORTION_SIZES, Camera, PixelRays, Projection
 from .camera_file import CAMERA_FILE_FORMAT, CameraSetup, read_camera_file, write_camera_file
 from .footage import VIDEO_SUFFIXES, Footage, open_footage
 from .image_file import IMAGE_SUFFIXES, read_image, write_image
-from .light import LIGHT_KINDS, Light
+from .light import LIGHT_KINDS, REFERENCE_DISTANCE_MM, Light
 from .light_file import LIGHT_FILE_FORMAT, LightSetup, read_light_file, write_light_file
 from .calibrate_light import EDGE_PROFILES, LightCalibration, LightCalibrationError, calibrate_light
 from .image_to_float import image_to_float, linear_to_srgb, srgb_to_linear
@@ -89,6 +89,7 @@ __all__ = [
     "LOSSLESS_VIDEO_CODECS",
     "Light",
     "LIGHT_KINDS",
+    "REFERENCE_DISTANCE_MM",
     "LightSetup",
     "LIGHT_FILE_FORMAT",
     "read_light_file",
