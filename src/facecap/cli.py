@@ -750,7 +750,7 @@ def _cmd_calibrate_light(args: argparse.Namespace) -> int:
             residual = "ray angles x 1 m"
             unit = "mm"
         print(f"wrote {args.out}: {where} from {len(done.ray_distances_mm)} reflected rays "
-              f"({len(cameras)} cameras, {n_frames} sphere positions)")
+              f"({len(cameras)} camera{'s' * (len(cameras) != 1)}, {n_frames} sphere position{'s' * (n_frames != 1)})")
         print(f"  {residual}: rms {float(np.sqrt(np.mean(done.ray_distances_mm ** 2))):.2f} {unit}, max "
               f"{float(done.ray_distances_mm.max()):.2f} {unit}; rays spread {done.spread_deg:.2f} deg; {spread}; "
               f"sphere outline rms {float(np.sqrt(np.mean(done.edge_rms_px ** 2))):.2f} px")
