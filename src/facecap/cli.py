@@ -756,6 +756,66 @@ def _cmd_detail(args: argparse.Namespace) -> int:
         t = done.timings
         print(f"wrote {done.out_dir}: detail on {done.n_video_frames} video frames over {done.region_vertices} "
               f"vertices (shape from shading {t['shape_from_shading_s']:.1f} s)")
+def _add_calibrate_light(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "calibrate-light",
+        help="a light's position (or direction) from footage of a chrome sphere seen by calibrated cameras",
+        description="Find a chrome sphere of known radius and the light's highlight on it in each camera's "
+        "footage (every frame one sphere position), fit the sphere, reflect each highlight's ray off it and "
+        "meet the reflected rays: a point light, or a directional one when they are nearly parallel. "
+        "Writes lights.json and a check picture beside it (docs/cameras.md, Lights).",
+    )
+    p.add_argument("--cameras", required=True, nargs="+",
+                   help="the facecap camera file (cameras.json), or one OpenCV calibration YAML per camera in --images order")
+    p.add_argument("--images", required=True, nargs="+",
+                   help="one image, image folder or video per camera; frame f of each shows the same sphere position")
+    p.add_argument("--sphere-radius", required=True, type=float, metavar="MM",
+                   help="the sphere's radius in mm (half its diameter)")
+    p.add_argument("--out", required=True, help="lights.json to write (its check picture goes beside it)")
+    p.add_argument("--intensity", type=float, default=1.0, help="the light's relative intensity, written as given [1]")
+    p.add_argument("--ambient", type=float, default=0.0, help="the room's relative ambient light, written as given [0]")
+    p.add_argument("--kind", choices=("auto", "point", "directional"), default="auto",
+                   help="auto: directional when the reflected rays are too near parallel for a distance [auto]")
+    p.add_argument("--highlight-sigma", type=float, default=0.5, metavar="PX",
+                   help="the highlight's assumed error in px, for the uncertainty [0.5]")
+    p.add_argument("--camera-units", default="mm", help="unit of T in OpenCV calibration files [mm]")
+    _add_overwrite(p, "an existing --out")
+    p.set_defaults(func=_cmd_calibrate_light)
+
+
+def _cmd_calibrate_light(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .cameras import read_footage_cameras
+    from .pipelines import calibrate_stage_light, light_check_path
+
+    if not args.sphere_radius > 0 or not np.isfinite(args.sphere_radius):
+        raise FacecapError(f"--sphere-radius: expected a positive radius in mm, got {args.sphere_radius}")
+    if not args.highlight_sigma > 0 or not args.intensity >= 0 or not args.ambient >= 0:
+        raise FacecapError("--highlight-sigma must be > 0, --intensity and --ambient >= 0")
+    cameras = read_footage_cameras(args.cameras, args.images, unit=args.camera_units).cameras
+    done = calibrate_stage_light(cameras, args.images, args.sphere_radius, args.out, intensity=args.intensity,
+                                 ambient=args.ambient, kind=args.kind, highlight_sigma_px=args.highlight_sigma,
+                                 overwrite=args.overwrite)
+    if not args.quiet:
+        light = done.light
+        n_frames = done.sphere_centres.shape[0]
+        if light.kind == "point":
+            where = "point light at ({:.1f}, {:.1f}, {:.1f}) mm".format(*light.position)
+            spread = f"sigma {done.sigma_mm[0]:.1f} / {done.sigma_mm[1]:.1f} / {done.sigma_mm[2]:.1f} mm"
+            residual = "ray distances"
+            unit = "mm"
+        else:
+            where = "directional light travelling ({:.4f}, {:.4f}, {:.4f})".format(*light.direction)
+            spread = f"sigma {done.direction_sigma_deg:.2f} deg"
+            residual = "ray angles x 1 m"
+            unit = "mm"
+        print(f"wrote {args.out}: {where} from {len(done.ray_distances_mm)} reflected rays "
+              f"({len(cameras)} camera{'s' * (len(cameras) != 1)}, {n_frames} sphere position{'s' * (n_frames != 1)})")
+        print(f"  {residual}: rms {float(np.sqrt(np.mean(done.ray_distances_mm ** 2))):.2f} {unit}, max "
+              f"{float(done.ray_distances_mm.max()):.2f} {unit}; rays spread {done.spread_deg:.2f} deg; {spread}; "
+              f"sphere outline rms {float(np.sqrt(np.mean(done.edge_rms_px ** 2))):.2f} px")
+        print(f"  check picture: {light_check_path(args.out)}")
     return 0
 
 
@@ -989,6 +1049,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_wrinkles(sub)
     _add_detail(sub)
     _add_remove_wrinkles(sub)
+    _add_calibrate_light(sub)
     _add_build_anatomy(sub)
     _add_solve_muscles(sub)
     _add_edit_muscles(sub)

@@ -30,6 +30,9 @@ centre of the top-left pixel, ``u`` right, ``v`` down.
 - :class:`Light` (``light.py``): a point, spot or directional light in the mocap frame, the direction
   and irradiance it sends to each point; :class:`LightSetup`, :func:`read_light_file` and
   :func:`write_light_file` (``light_file.py``): ``lights.json``, the stage's lights and ambient.
+- :func:`calibrate_light` (``calibrate_light.py``): a point light's position (or a far light's direction)
+  from a chrome sphere of known radius seen by calibrated cameras, as a :class:`LightCalibration`
+  (:class:`LightCalibrationError` names the image that could not be measured).
 - :class:`RayCaster` and :func:`ray_cast` (``ray_cast.py``): the point of the
   (deformed) mesh each pixel sees (Embree), which vertices a camera sees and
   which points a light reaches (cast shadows);
@@ -43,8 +46,9 @@ from .camera import DISTORTION_SIZES, Camera, PixelRays, Projection
 from .camera_file import CAMERA_FILE_FORMAT, CameraSetup, read_camera_file, write_camera_file
 from .footage import VIDEO_SUFFIXES, Footage, open_footage
 from .image_file import IMAGE_SUFFIXES, read_image, write_image
-from .light import LIGHT_KINDS, Light
+from .light import LIGHT_KINDS, REFERENCE_DISTANCE_MM, Light
 from .light_file import LIGHT_FILE_FORMAT, LightSetup, read_light_file, write_light_file
+from .calibrate_light import EDGE_PROFILES, LightCalibration, LightCalibrationError, calibrate_light
 from .image_to_float import image_to_float, linear_to_srgb, srgb_to_linear
 from .project_performance import PerformanceProjection, project_performance
 from .ray_cast import RayCaster, RayHits, ray_cast
@@ -85,10 +89,15 @@ __all__ = [
     "LOSSLESS_VIDEO_CODECS",
     "Light",
     "LIGHT_KINDS",
+    "REFERENCE_DISTANCE_MM",
     "LightSetup",
     "LIGHT_FILE_FORMAT",
     "read_light_file",
     "write_light_file",
+    "calibrate_light",
+    "LightCalibration",
+    "LightCalibrationError",
+    "EDGE_PROFILES",
     "RayCaster",
     "RayHits",
     "ray_cast",

@@ -49,6 +49,9 @@ calls the solver packages (arrays in, arrays out), and writes the result through
   scan's wrinkles smoothed out in a region (Bickel et al. 2007, sec. 5.4), written as a new scan.
 - :func:`generate_capture_case` (``generate_capture_case.py``): ``facecap synth``, a capture case
   with its dense ground truth (and wrinkle footage from two cameras) written as a folder.
+- :func:`calibrate_stage_light` (``calibrate_stage_light.py``): ``facecap calibrate-light``, a light
+  calibrated from footage of a chrome sphere, written as ``lights.json`` with a check picture
+  (:func:`light_check_path`).
 - :func:`run_demo` (``run_demo.py``): ``facecap demo``, the jobs above on the bundled sample (a
   generated take with its ground truth, the real AnimFace take, generated wrinkle footage), with
   pictures and ``demo_summary.json``.
@@ -94,6 +97,7 @@ _PUBLIC = {
     "generate_capture_case": ("generate_capture_case",),
     "build_anatomy_model": ("build_anatomy_model",),
     "remove_scan_wrinkles": ("remove_scan_wrinkles",),
+    "calibrate_stage_light": ("calibrate_stage_light", "light_check_path"),
 }
 """Each job module's public names, by module."""
 

@@ -20,6 +20,8 @@ In the order a user meets them:
   scan (Huang et al. 2011, Fig. 8) and its chosen frames over the take.
 - :func:`plot_activations` (``plot_activations.py``): muscle activations over a take, with
   the frames the solve flagged and the marker residual that flagged them.
+- :func:`draw_light_check` (``draw_light_check.py``): what ``facecap calibrate-light`` found in
+  each camera's image (the sphere's outline, the fitted sphere, the highlight).
 - :func:`write_review_page`, :func:`serve`, :class:`ReviewServer` (``review_page.py``):
   the result's GLB played in the browser (three.js, offline), and the localhost server
   of ``facecap view``.
@@ -37,6 +39,7 @@ once anything had imported ``facecap.report.render_mesh`` directly.
 from __future__ import annotations
 
 from .describe import describe_file, format_description
+from .draw_light_check import draw_light_check
 from .evaluate_performance import DenseError, RegionError, evaluate_performance
 from .evaluate_result import evaluate_result, read_truth, result_and_truth_mm
 from .explain_warning import WarningAdvice, explain_warning
@@ -50,6 +53,7 @@ from .review_page import EMBED_LIMIT_BYTES, ReviewServer, serve, write_review_pa
 from .write_run_report import write_run_report
 
 __all__ = [
+    "draw_light_check",
     "describe_file",
     "format_description",
     "evaluate_result",

@@ -48,6 +48,8 @@ In the order a user meets them:
   :func:`write_footage_case`, :func:`stage_cameras`, :class:`FootageFiles`,
   :data:`MOCAP_RATE_HZ`, :data:`VIDEO_RATE_HZ` (``write_footage_case.py``), a
   case with its footage and truth on disk.
+- :func:`render_mirror_sphere`, :data:`MIRROR_SPHERE_DEFAULTS` (``mirror_sphere.py``): a chrome
+  sphere reflecting a light, as calibrated cameras see it (``facecap calibrate-light``'s footage).
 """
 
 from __future__ import annotations
@@ -79,9 +81,12 @@ from .wrinkles import (INFLUENCE_WIDTHS, WRINKLE_EXPRESSIONS, WRINKLE_KINDS, Wri
                        wrinkle_expression_curves, wrinkle_heights, wrinkle_profile)
 from .wrinkle_paint import PAINT_COLORS, PAINT_HALF_WIDTH, PaintedSkin, paint_wrinkles
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
+from .mirror_sphere import MIRROR_SPHERE_DEFAULTS, render_mirror_sphere
 from .write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, FootageFiles, stage_cameras, write_footage_case
 
 __all__ = [
+    "render_mirror_sphere",
+    "MIRROR_SPHERE_DEFAULTS",
     "random_identity",
     "RANDOM_IDENTITY_SD",
     "generate_performance",
