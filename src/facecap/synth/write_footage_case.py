@@ -20,7 +20,7 @@ from ..io.ict_sample import IctSample, load_ict_sample
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from .skin_albedo import SkinRegions, skin_albedo
 from .wrinkle_paint import PAINT_COLORS, paint_wrinkles
-from .wrinkle_scan import SubdividedScan, refine_near, subdivide_scan
+from .wrinkle_scan import SubdividedScan, carry_labels, refine_near, subdivide_scan
 from .wrinkles import add_wrinkles, place_wrinkles, wrinkle_expression_curves, wrinkle_heights
 from .write_synthetic_case import correspondence_json
 
@@ -129,12 +129,8 @@ def stage_cameras(
 
 def _fine_regions(sample: IctSample, upsample: Any, scan_vertices: FloatArray) -> SkinRegions:
     """The sample's face regions carried to the fine mesh: each new vertex takes its heaviest parent's."""
-    S = upsample.tocsr()
-    rows = np.repeat(np.arange(S.shape[0]), np.diff(S.indptr))
-    order = np.lexsort((-S.data, rows))
-    first = np.unique(rows[order], return_index=True)[1]
-    parent = S.indices[order][first]
-    return SkinRegions(sample.region_labels[parent], sample.region_names, scan_vertices[sample.landmarks[48:60]])
+    return SkinRegions(carry_labels(upsample, sample.region_labels), sample.region_names,
+                       scan_vertices[sample.landmarks[48:60]])
 
 
 def _render_mesh(fine: SubdividedScan, wrinkle_mask: np.ndarray, max_edge_mm: float | None) -> SubdividedScan:
