@@ -26,9 +26,9 @@ from ..io.ict_sample import IctSample
 from ..structures import Mesh
 from ..typing import FloatArray
 from .skin_albedo import band_noise
-from .wrinkles import INFLUENCE_WIDTHS, WrinkleCurves, wrinkle_curves_on_surface, wrinkle_profile
+from .wrinkles import WrinkleCurves, wrinkle_curves_on_surface, wrinkle_profile
 
-__all__ = ["FINE_LINE_KINDS", "FINE_LINE_PROFILES", "place_fine_lines", "double_crease_profile", "fine_line_reach_mm",
+__all__ = ["FINE_LINE_KINDS", "FINE_LINE_PROFILES", "place_fine_lines", "double_crease_profile",
            "skin_texture_heights", "SKIN_TEXTURE_RMS_MM"]
 
 FINE_LINE_KINDS = ("forehead", "glabella", "crows_feet", "under_eye")
@@ -192,11 +192,6 @@ def place_fine_lines(scan: Mesh, sample: IctSample, *, seed: int = 0) -> Wrinkle
     return wrinkle_curves_on_surface(scan, [r[2] for r in rows], names=[r[0] for r in rows], kinds=kinds,
                                      gains=gains, max_depth=depth, max_width=width,
                                      min_width=_MIN_WIDTH_FRACTION * width)
-
-
-def fine_line_reach_mm(curves: WrinkleCurves) -> FloatArray:
-    """(c,) how far from its line each fine line moves the skin, mm: :data:`INFLUENCE_WIDTHS` widths."""
-    return INFLUENCE_WIDTHS * curves.max_width
 
 
 def skin_texture_heights(points: FloatArray, *, seed: int = 0, rms_mm: float = SKIN_TEXTURE_RMS_MM) -> FloatArray:

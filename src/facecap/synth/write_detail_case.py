@@ -33,7 +33,7 @@ from .wrinkle_scan import carry_labels, refine_near, subdivide_scan
 from .wrinkles import add_wrinkles, wrinkle_expression_curves, wrinkle_heights
 from .write_footage_case import IMAGE_SIZE, MOCAP_RATE_HZ, stage_cameras, write_take_files
 
-__all__ = ["DetailFiles", "write_detail_case", "DETAIL_EDGE_MM", "DETAIL_VIDEO_EVERY", "MARKER_RADIUS_MM"]
+__all__ = ["DetailFiles", "write_detail_case", "DETAIL_EDGE_MM", "DETAIL_VIDEO_EVERY", "MARKER_RADIUS_MM", "MARKER_ALBEDO"]
 
 DETAIL_EDGE_MM = 0.3
 """Longest edge of the scan where the fine lines are (mm): a 0.3 mm wide line is one edge across."""
