@@ -206,6 +206,28 @@ def test_synth_renders_footage_from_the_refined_scan_by_default(tmp_path, monkey
         assert asked[-1] == expected
 
 
+def test_synth_detail_preset_asks_for_the_detail_footage(tmp_path, monkeypatch, capsys):
+    import importlib
+
+    detail_module = importlib.import_module("facecap.synth.write_detail_case")
+    asked = []
+
+    def record(out, **options):  # stands in for the renderer: the preset's arguments only
+        asked.append(options)
+        (Path(out) / "truth.npz").write_bytes(b"")
+
+    monkeypatch.setattr(detail_module, "write_detail_case", record)
+    assert main(["-q", "synth", "--out", str(tmp_path / "d"), "--frames", "5", "--footage", "--detail"]) == 0
+    assert asked[-1]["appearance"] == "phong" and asked[-1]["n_frames"] == 5 and asked[-1]["levels"] == 2
+    assert main(["-q", "synth", "--out", str(tmp_path / "i"), "--frames", "5", "--footage", "--detail",
+                 "--appearance", "independent"]) == 0
+    assert asked[-1]["appearance"] == "independent"
+    for bad, named in ((["--detail"], "--detail"), (["--footage", "--appearance", "independent"], "--appearance"),
+                       (["--footage", "--detail", "--render-edge", "0.3"], "--render-edge")):
+        assert main(["synth", "--out", str(tmp_path / "bad"), "--frames", "5", *bad]) == 2
+        assert named in capsys.readouterr().err and not (tmp_path / "bad").exists()
+
+
 def _contents(folder: Path) -> dict[str, bytes]:
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 

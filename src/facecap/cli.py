@@ -589,6 +589,13 @@ def _add_synth(sub: argparse._SubParsersAction) -> None:
                    help="with --footage: render from the scan refined around the wrinkles to this edge length, so "
                         "the images shade the truth's valleys, not their sampling at the scan's vertices "
                         "(about 8 s per video frame at the default scan); 0: render the scan itself [0.3]")
+    p.add_argument("--detail", action="store_true",
+                   help="with --footage: footage for the detail layer instead (shape from shading): fine lines and skin "
+                        "bumps on a scan refined to 0.3 mm where the lines are, studio lights (lights.json) with cast "
+                        "shadows and a view-dependent specular, freckles, moles, a flush, markers drawn, no paint, 25 fps")
+    p.add_argument("--appearance", choices=("phong", "independent"), default="phong",
+                   help="with --detail: the Phong skin, or the held-out microfacet skin with other lights and line "
+                        "profiles [phong]")
     _add_overwrite(p, "an earlier case in --out")
     p.set_defaults(func=_cmd_synth)
 
@@ -604,6 +611,12 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         raise FacecapError("--levels: only with --footage (the case without footage is on the ICT face itself)")
     if args.render_edge is not None and not args.footage:
         raise FacecapError("--render-edge: only with --footage (it is how the footage is rendered)")
+    if args.detail and not args.footage:
+        raise FacecapError("--detail: only with --footage (it is a kind of footage)")
+    if args.appearance != "phong" and not args.detail:
+        raise FacecapError("--appearance: only with --footage --detail")
+    if args.detail and args.render_edge is not None:
+        raise FacecapError("--render-edge: not with --detail (its scan is refined to 0.3 mm where the lines are)")
     edge = None
     if args.footage:  # the renderer's module, only for footage
         from .synth.write_footage_case import MIN_RENDER_EDGE_MM, RENDER_EDGE_MM
@@ -615,9 +628,10 @@ def _cmd_synth(args: argparse.Namespace) -> int:
         edge = RENDER_EDGE_MM if args.render_edge is None else (None if args.render_edge == 0 else args.render_edge)
     generate_capture_case(args.out, n_frames=args.frames, seed=args.seed, identity_seed=args.identity,
                           footage=args.footage, levels=args.levels, render_edge_mm=edge, progress=not args.quiet,
-                          overwrite=args.overwrite)
+                          overwrite=args.overwrite, detail=args.detail, appearance=args.appearance)
     if not args.quiet:
-        print(f"wrote {args.out}: {args.frames} frames" + (", wrinkle footage from two cameras" if args.footage else ""))
+        kind = f"detail footage ({args.appearance}) from two cameras" if args.detail else "wrinkle footage from two cameras"
+        print(f"wrote {args.out}: {args.frames} frames" + (f", {kind}" if args.footage else ""))
     return 0
 
 

@@ -118,3 +118,68 @@ def test_refine_near_one_triangle_by_hand_and_bad_input():
         refine_near(quad, np.zeros(3, dtype=bool), max_edge_mm=1.0)
     with pytest.raises(InputError, match="max_edge_mm"):
         refine_near(quad, np.ones(4, dtype=bool), max_edge_mm=0.0)
+
+
+def _planar_charts(seed):
+    """A flat 4x4 grid (z = 0) whose every triangle has a UV chart of its own (an affine map, random per
+    triangle), so every edge is a seam; the UVs of one corner are shared by the triangles of a 2x2 block only."""
+    rng = np.random.default_rng(seed)
+    x, y = np.meshgrid(np.arange(5.0), np.arange(5.0))
+    V = np.column_stack([x.ravel(), y.ravel(), np.zeros(25)])
+    q = (np.arange(4)[:, None] * 5 + np.arange(4)[None]).ravel()
+    F = np.concatenate([np.stack([q, q + 1, q + 6], 1), np.stack([q, q + 6, q + 5], 1)])
+    maps = rng.normal(size=(len(F), 2, 3))  # uv = A [x, y, 1] per triangle
+    uvs = np.einsum("fij,fkj->fki", maps, np.concatenate([V[F][..., :2], np.ones((len(F), 3, 1))], axis=2))
+    mesh = Mesh(V, F, uvs=uvs.reshape(-1, 2), uv_indices=np.arange(3 * len(F)))
+    return mesh, maps
+
+
+def _check_uvs_are_the_parents_affine_maps(coarse, maps, fine):
+    """Every fine corner's UV is its original triangle's map at the corner: exact interpolation, seams kept."""
+    V, F = fine.vertices, fine.faces
+    corner_uv = fine.uvs[fine.uv_indices.reshape(-1, 3)]
+    centroid = V[F].mean(axis=1)[:, :2]
+    A = coarse.vertices[coarse.faces][..., :2]  # (m, 3, 2)
+    # the original triangle holding each fine triangle's centroid (barycentric coordinates all positive)
+    T = np.stack([A[:, 1] - A[:, 0], A[:, 2] - A[:, 0]], axis=2)
+    lam = np.linalg.solve(T[None], (centroid[:, None] - A[None, :, 0])[..., None])[..., 0]
+    inside = (lam > 1e-9).all(axis=2) & (lam.sum(axis=2) < 1 - 1e-9)
+    assert (inside.sum(axis=1) == 1).all()
+    parent = inside.argmax(axis=1)
+    expected = np.einsum("fij,fkj->fki", maps[parent], np.concatenate([V[F][..., :2], np.ones((len(F), 3, 1))], 2))
+    np.testing.assert_allclose(corner_uv, expected, atol=1e-12)
+
+
+def test_uvs_interpolate_exactly_at_midpoints_and_seams_stay_seams():
+    coarse, maps = _planar_charts(0)
+    fine = subdivide_scan(coarse, levels=2).mesh
+    _check_uvs_are_the_parents_affine_maps(coarse, maps, fine)
+    assert fine.uvs.shape[0] > fine.n_vertices  # the midpoint of a seam edge has a UV on each side
+    np.testing.assert_array_equal(fine.uvs[: coarse.uvs.shape[0]], coarse.uvs)
+    near = np.zeros(coarse.n_vertices, dtype=bool)
+    near[12] = True
+    refined = refine_near(coarse, near, max_edge_mm=0.3)
+    _check_uvs_are_the_parents_affine_maps(coarse, maps, refined.mesh)
+    # the green (halved) triangles around the region split their UV triangles the same way
+    assert refined.mesh.uv_indices.shape == (3 * refined.mesh.n_faces,)
+
+
+def test_uvs_shared_across_an_edge_stay_shared_and_survive_the_obj_file(tmp_path):
+    from facecap.io import read_mesh, write_mesh
+
+    sample = load_ict_sample()
+    fine = subdivide_scan(sample.mesh, levels=1)
+    mesh = fine.mesh
+    # the ICT face's UV seams are few: a fine vertex has as many UVs as its original (or edge) had
+    n_uv = lambda m: np.unique(np.column_stack([m.faces.ravel(), m.uv_indices]), axis=0).shape[0]  # noqa: E731
+    extra = n_uv(mesh) - mesh.n_vertices
+    assert 0 < extra < 0.02 * mesh.n_vertices
+    near = np.zeros(mesh.n_vertices, dtype=bool)
+    near[sample.landmarks[36:48]] = True  # around the eyes
+    refined = refine_near(mesh, near, max_edge_mm=0.4).mesh
+    write_mesh(refined, tmp_path / "scan.obj")
+    back = read_mesh(tmp_path / "scan.obj")
+    assert back.n_vertices == refined.n_vertices and back.uvs is not None
+    np.testing.assert_allclose(back.uvs[back.uv_indices.reshape(-1, 3)], refined.uvs[refined.uv_indices.reshape(-1, 3)],
+                               atol=1e-8)
+    np.testing.assert_array_equal(back.faces, refined.faces)

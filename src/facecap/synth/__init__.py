@@ -46,8 +46,22 @@ In the order a user meets them:
   :func:`ambient_occlusion`, :func:`sensor_noise`, :func:`quantize`,
   :data:`SENSOR_DEFAULTS` (``render_footage.py``), the renderer;
   :func:`write_footage_case`, :func:`stage_cameras`, :class:`FootageFiles`,
-  :data:`MOCAP_RATE_HZ`, :data:`VIDEO_RATE_HZ` (``write_footage_case.py``), a
-  case with its footage and truth on disk.
+  :data:`MOCAP_RATE_HZ`, :data:`VIDEO_RATE_HZ`, :func:`write_take_files`, :class:`TakeFiles`
+  (``write_footage_case.py``), a case with its footage and truth on disk. The scan's labels
+  carried to the fine mesh by :func:`carry_labels` (``wrinkle_scan.py``); lines drawn in the
+  frontal plane by :func:`wrinkle_curves_on_surface` (``wrinkles.py``).
+- Footage with ground truth for the detail layer (space-time shape from shading, Lo et al.):
+  :func:`place_fine_lines`, :func:`skin_texture_heights`, :func:`double_crease_profile`,
+  :data:`FINE_LINE_KINDS`, :data:`FINE_LINE_PROFILES`, :data:`SKIN_TEXTURE_RMS_MM` (``fine_lines.py``),
+  the fine lines and the skin's static bumps; :func:`skin_albedo_layers`, :class:`SkinLayers`,
+  :func:`band_noise` (``skin_albedo.py``), the albedo with moles and its marks apart; :func:`skin_flush`,
+  :class:`SkinFlush`, :data:`FLUSH_TINT` (``skin_flush.py``), the cheeks' flush with the smile;
+  :func:`studio_lights`, :data:`LIGHTING_STYLES` (``studio_lights.py``), the stage's lights;
+  :func:`shade_skin`, :func:`skin_radiance`, :func:`subsurface_blur`, :func:`region_reflectance`,
+  :class:`Shading`, :data:`REGION_REFLECTANCE`, :data:`APPEARANCES` (``shade_skin.py``), Phong and the
+  independent microfacet skin; :func:`draw_markers` (``draw_markers.py``), the markers in the images;
+  :func:`write_detail_case`, :class:`DetailFiles`, :data:`DETAIL_EDGE_MM`, :data:`DETAIL_VIDEO_EVERY`,
+  :data:`MARKER_RADIUS_MM`, :data:`MARKER_ALBEDO` (``write_detail_case.py``), the case on disk.
 - :func:`render_mirror_sphere`, :data:`MIRROR_SPHERE_DEFAULTS` (``mirror_sphere.py``): a chrome
   sphere reflecting a light, as calibrated cameras see it (``facecap calibrate-light``'s footage).
 """
@@ -71,18 +85,28 @@ from .real_motion_curves import REAL_CURVE_NAMES, RealCurveFit, load_real_curve_
 from .rest_expression import RESTING_SHAPES, as_rest_weights, random_rest_expression
 from .rotational_jaw import ICT_JAW_SCREW, JAW_MODES, JawScrew, fit_jaw_screw, rotational_jaw_correction
 from .scan_expression import ScannedExpression, scan_expression
-from .skin_albedo import BASE_SKIN_TONE, SkinRegions, skin_albedo
+from .skin_albedo import BASE_SKIN_TONE, SkinLayers, SkinRegions, band_noise, skin_albedo, skin_albedo_layers
 from .smoothstep import smoothstep
 from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
 from .write_synthetic_case import CaseFiles, correspondence_json, write_planned_scans, write_synthetic_case
-from .wrinkle_scan import SubdividedScan, refine_near, subdivide_scan
+from .wrinkle_scan import SubdividedScan, carry_labels, refine_near, subdivide_scan
 from .wrinkles import (INFLUENCE_WIDTHS, WRINKLE_EXPRESSIONS, WRINKLE_KINDS, WrinkleCurves, WrinkledPerformance,
                        add_wrinkles, every_wrinkle_at_once, place_wrinkles, wrinkle_activation,
-                       wrinkle_expression_curves, wrinkle_heights, wrinkle_profile)
+                       wrinkle_curves_on_surface, wrinkle_expression_curves, wrinkle_heights, wrinkle_profile)
 from .wrinkle_paint import PAINT_COLORS, PAINT_HALF_WIDTH, PaintedSkin, paint_wrinkles
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from .mirror_sphere import MIRROR_SPHERE_DEFAULTS, render_mirror_sphere
-from .write_footage_case import MOCAP_RATE_HZ, VIDEO_RATE_HZ, FootageFiles, stage_cameras, write_footage_case
+from .write_footage_case import (MOCAP_RATE_HZ, VIDEO_RATE_HZ, FootageFiles, TakeFiles, stage_cameras,
+                                 write_footage_case, write_take_files)
+from .fine_lines import (FINE_LINE_KINDS, FINE_LINE_PROFILES, SKIN_TEXTURE_RMS_MM, double_crease_profile,
+                         place_fine_lines, skin_texture_heights)
+from .shade_skin import (APPEARANCES, REGION_REFLECTANCE, Shading, region_reflectance, shade_skin, skin_radiance,
+                         subsurface_blur)
+from .skin_flush import FLUSH_TINT, SkinFlush, skin_flush
+from .studio_lights import LIGHTING_STYLES, studio_lights
+from .draw_markers import draw_markers
+from .write_detail_case import (DETAIL_EDGE_MM, DETAIL_VIDEO_EVERY, MARKER_ALBEDO, MARKER_RADIUS_MM, DetailFiles,
+                                write_detail_case)
 
 __all__ = [
     "render_mirror_sphere",
@@ -129,6 +153,7 @@ __all__ = [
     "subdivide_scan",
     "SubdividedScan",
     "refine_near",
+    "carry_labels",
     "place_wrinkles",
     "add_wrinkles",
     "wrinkle_profile",
@@ -155,4 +180,35 @@ __all__ = [
     "FootageFiles",
     "MOCAP_RATE_HZ",
     "VIDEO_RATE_HZ",
+    "place_fine_lines",
+    "skin_texture_heights",
+    "double_crease_profile",
+    "FINE_LINE_KINDS",
+    "shade_skin",
+    "skin_radiance",
+    "region_reflectance",
+    "REGION_REFLECTANCE",
+    "APPEARANCES",
+    "skin_flush",
+    "SkinFlush",
+    "studio_lights",
+    "draw_markers",
+    "write_detail_case",
+    "DetailFiles",
+    "DETAIL_EDGE_MM",
+    "DETAIL_VIDEO_EVERY",
+    "MARKER_RADIUS_MM",
+    "MARKER_ALBEDO",
+    "FINE_LINE_PROFILES",
+    "SKIN_TEXTURE_RMS_MM",
+    "Shading",
+    "subsurface_blur",
+    "FLUSH_TINT",
+    "LIGHTING_STYLES",
+    "skin_albedo_layers",
+    "SkinLayers",
+    "band_noise",
+    "wrinkle_curves_on_surface",
+    "write_take_files",
+    "TakeFiles",
 ]

@@ -280,9 +280,10 @@ class FootageRenderer:
         ----------
         vertices : (n, 3) float array, mm
             In the mocap frame the cameras are calibrated in.
-        radiance : (n, 3) float array
+        radiance : (n, 3) or (c, n, 3) float array
             Linear RGB radiance of each vertex (interpolated across triangles),
-            as a fraction of the sensor's full scale.
+            as a fraction of the sensor's full scale: one for every camera, or
+            one per camera (view-dependent shading, a specular highlight).
 
         Returns
         -------
@@ -294,15 +295,17 @@ class FootageRenderer:
 
         X = as_vertices(vertices, name="vertices")
         C = np.asarray(radiance, dtype=np.float32)
-        if C.shape != X.shape:
-            raise InputError(f"radiance: expected shape {X.shape}, got {C.shape}")
+        if C.shape == X.shape:
+            C = np.broadcast_to(C, (len(self.cameras),) + X.shape)
+        if C.shape != (len(self.cameras),) + X.shape:
+            raise InputError(f"radiance: expected shape {X.shape} or {(len(self.cameras),) + X.shape}, got {C.shape}")
         if int(self.faces.max()) >= X.shape[0]:
             raise InputError(f"vertices: {X.shape[0]} rows, but the faces index up to {int(self.faces.max())}")
         images = []
         ctx = self._ctx
-        for cam, view in zip(self.cameras, self._views):
+        for cam, view, C_cam in zip(self.cameras, self._views, C):
             Xc = X @ np.asarray(cam.R, dtype=np.float64).T + np.asarray(cam.T, dtype=np.float64).ravel()
-            data = np.hstack([Xc.astype(np.float32), C])
+            data = np.hstack([Xc.astype(np.float32), C_cam])
             vbo = ctx.buffer(np.ascontiguousarray(data).tobytes())
             vao = ctx.vertex_array(self._program, [(vbo, "3f 3f", "position", "radiance")], self._index)
             w_r, h_r = view.size

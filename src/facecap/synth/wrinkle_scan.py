@@ -1,4 +1,9 @@
-"""A scan fine enough to hold wrinkles: the face subdivided (everywhere, or near chosen vertices), its original vertices kept first."""
+"""A scan fine enough to hold wrinkles: the face subdivided (everywhere, or near chosen vertices), its original vertices kept first.
+
+Texture coordinates ride along: the UV triangles (one UV index per triangle corner, face-varying) are split
+exactly as the triangles are, each new corner at the midpoint of its UV edge; an edge on a UV seam has two UV
+edges, one each side, so its midpoint gets two UVs and the seam stays a seam.
+"""
 
 from __future__ import annotations
 
@@ -8,10 +13,11 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
+from ..io.write_gltf import triangle_corners
 from ..structures import Mesh
-from ..typing import IntArray
+from ..typing import FloatArray, IntArray
 
-__all__ = ["SubdividedScan", "subdivide_scan", "refine_near"]
+__all__ = ["SubdividedScan", "subdivide_scan", "refine_near", "carry_labels"]
 
 
 class SubdividedScan(NamedTuple):
@@ -20,9 +26,11 @@ class SubdividedScan(NamedTuple):
     Attributes
     ----------
     mesh : Mesh
-        The fine mesh (mm, triangles only, no UVs): the original ``n``
-        vertices first, unchanged and in order, then the edge midpoints of
-        each level.
+        The fine mesh (mm, triangles only): the original ``n`` vertices
+        first, unchanged and in order, then the edge midpoints of each level.
+        When the original has UVs, so has the fine mesh: ``uv_indices``
+        follows ``faces.ravel()``, the original UVs first and unchanged,
+        then the midpoints of the UV edges that were split.
     upsample : (n_fine, n) scipy.sparse.csr_matrix, float64
         ``mesh.vertices == upsample @ original.vertices``; apply it to any
         per-vertex field of the original (an animated frame, blendshape
@@ -51,6 +59,22 @@ def _midpoint_level(F: IntArray, n: int) -> tuple[IntArray, sp.csr_matrix]:
     cols = np.concatenate([np.arange(n), edges.ravel()])
     vals = np.concatenate([np.ones(n), np.full(2 * e, 0.5)])
     return faces.astype(np.int64), sp.csr_matrix((vals, (rows, cols)), shape=(n + e, n))
+
+
+def _triangle_uvs(mesh: Mesh) -> tuple[FloatArray, IntArray] | None:
+    """The mesh's UVs and (m, 3) UV index of each triangle corner, or None without UVs."""
+    if mesh.uvs is None or mesh.uv_indices is None:
+        return None
+    corner_uv = np.asarray(mesh.uv_indices, dtype=np.int64)[triangle_corners(mesh)]
+    return np.asarray(mesh.uvs, dtype=np.float64), corner_uv
+
+
+def _fine_mesh(original: Mesh, S: sp.csr_matrix, F: IntArray, uv: tuple[FloatArray, IntArray] | None) -> Mesh:
+    V = S @ original.vertices
+    V[: original.n_vertices] = original.vertices  # exact, not 1.0 * v
+    if uv is None:
+        return Mesh(V, F, source_unit=original.source_unit)
+    return Mesh(V, F, uvs=uv[0], uv_indices=uv[1].ravel(), source_unit=original.source_unit)
 
 
 def subdivide_scan(scan: Mesh, *, levels: int = 2) -> SubdividedScan:
@@ -99,13 +123,14 @@ def subdivide_scan(scan: Mesh, *, levels: int = 2) -> SubdividedScan:
     n = scan.n_vertices
     F = scan.faces
     S = sp.identity(n, format="csr", dtype=np.float64)
+    uv = _triangle_uvs(scan)
     for _ in range(int(levels)):
         F, level = _midpoint_level(F, S.shape[0])
         S = (level @ S).tocsr()
-    V = S @ scan.vertices
-    V[:n] = scan.vertices  # exact, not 1.0 * v
-    mesh = Mesh(V, F, source_unit=scan.source_unit)
-    return SubdividedScan(mesh=mesh, upsample=S, n_original=n)
+        if uv is not None:  # the UV triangles split alike: their faces come out in the same order
+            uv_faces, uv_level = _midpoint_level(uv[1], uv[0].shape[0])
+            uv = (uv_level @ uv[0], uv_faces)
+    return SubdividedScan(mesh=_fine_mesh(scan, S, F, uv), upsample=S, n_original=n)
 
 
 def _edge_keys(E: IntArray, n: int) -> IntArray:
@@ -113,11 +138,8 @@ def _edge_keys(E: IntArray, n: int) -> IntArray:
     return lo.astype(np.int64) * n + hi
 
 
-def _red_green_level(F: IntArray, n: int, marked: np.ndarray) -> tuple[IntArray, IntArray, sp.csr_matrix]:
-    """Split the marked triangles 1-to-4 and close the mesh conformingly.
-
-    Returns the new faces, the index in ``F`` of the triangle each came from, and the
-    averaging matrix.
+def _red_green_split(F: IntArray, n: int, marked: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which triangles split 1-to-4 (``red``, (m,) bool) and which of their edges split (``is_split``, (m, 3)).
 
     A triangle left with two or three split edges is split 1-to-4 as well (repeated until none
     is); one with a single split edge is halved through it (a "green" split), so no vertex
@@ -133,7 +155,18 @@ def _red_green_level(F: IntArray, n: int, marked: np.ndarray) -> tuple[IntArray,
         if not grow.any():
             break
         red |= grow
-    is_split = np.isin(keys, split)  # (m, 3)
+    return red, np.isin(keys, split)
+
+
+def _red_green_level(F: IntArray, n: int, red: np.ndarray, is_split: np.ndarray
+                     ) -> tuple[IntArray, IntArray, sp.csr_matrix]:
+    """Split as :func:`_red_green_split` decided: the new faces, the index in ``F`` of the triangle each came
+    from, and the averaging matrix. The same decision applied to the UV triangles (whose indices differ
+    across a seam) splits them alike, face for face."""
+    corners = np.stack([F[:, [0, 1]], F[:, [1, 2]], F[:, [2, 0]]], axis=1)
+    keys = _edge_keys(corners, n)  # (m, 3)
+    split = np.unique(keys[is_split])
+    count = is_split.sum(axis=1)
     mid = n + np.searchsorted(split, keys)  # valid where is_split
     a, b, c = F[:, 0], F[:, 1], F[:, 2]
     ab, bc, ca = mid[:, 0], mid[:, 1], mid[:, 2]
@@ -199,6 +232,7 @@ def refine_near(mesh: Mesh, near: object, *, max_edge_mm: float, max_levels: int
     n = mesh.n_vertices
     F = mesh.faces
     S = sp.identity(n, format="csr", dtype=np.float64)
+    uv = _triangle_uvs(mesh)
     inside = flags[F].any(axis=1)  # per current triangle: within an original triangle touching ``near``
     for _ in range(int(max_levels)):
         V = S @ mesh.vertices
@@ -206,9 +240,41 @@ def refine_near(mesh: Mesh, near: object, *, max_edge_mm: float, max_levels: int
         marked = inside & (longest > max_edge_mm)
         if not marked.any():
             break
-        F, parent, level = _red_green_level(F, S.shape[0], marked)
+        red, is_split = _red_green_split(F, S.shape[0], marked)
+        if uv is not None:
+            uv_faces, _, uv_level = _red_green_level(uv[1], uv[0].shape[0], red, is_split)
+            uv = (uv_level @ uv[0], uv_faces)
+        F, parent, level = _red_green_level(F, S.shape[0], red, is_split)
         inside = inside[parent]
         S = (level @ S).tocsr()
-    V = S @ mesh.vertices
-    V[:n] = mesh.vertices
-    return SubdividedScan(mesh=Mesh(V, F, source_unit=mesh.source_unit), upsample=S, n_original=n)
+    return SubdividedScan(mesh=_fine_mesh(mesh, S, F, uv), upsample=S, n_original=n)
+
+
+def carry_labels(upsample: sp.spmatrix, labels: IntArray) -> IntArray:
+    """Per-vertex labels of the original mesh carried to the fine one: each vertex takes its heaviest parent's.
+
+    Parameters
+    ----------
+    upsample : (n_fine, n) sparse matrix
+        :attr:`SubdividedScan.upsample` (or a product of them).
+    labels : (n,) int array
+        A label per original vertex (a face region, say).
+
+    Returns
+    -------
+    (n_fine,) int64 array
+        The original vertices keep theirs; a midpoint takes that of the parent with the largest
+        weight (ties: the parent stored first in the matrix's row).
+
+    Examples
+    --------
+    >>> tri = Mesh(np.array([[0.0, 0, 0], [2, 0, 0], [0, 2, 0]]), np.array([[0, 1, 2]]))
+    >>> carry_labels(subdivide_scan(tri, levels=1).upsample, np.array([7, 8, 9])).tolist()
+    [7, 8, 9, 8, 9, 9]
+    """
+    S = sp.csr_matrix(upsample)
+    rows = np.repeat(np.arange(S.shape[0]), np.diff(S.indptr))
+    order = np.lexsort((-S.data, rows))
+    first = np.unique(rows[order], return_index=True)[1]
+    parent = S.indices[order][first]
+    return np.asarray(labels, dtype=np.int64)[parent]

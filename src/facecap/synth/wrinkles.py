@@ -11,7 +11,7 @@ has a kink).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -28,7 +28,7 @@ from ..mesh.vertex_normals import vertex_normals
 from ..io.ict_sample import IctSample
 
 __all__ = ["WrinkleCurves", "WrinkledPerformance", "WRINKLE_KINDS", "INFLUENCE_WIDTHS", "WRINKLE_EXPRESSIONS",
-           "wrinkle_profile", "place_wrinkles", "wrinkle_activation", "wrinkle_heights", "wrinkle_expression_curves",
+           "wrinkle_profile", "place_wrinkles", "wrinkle_curves_on_surface", "wrinkle_activation", "wrinkle_heights", "wrinkle_expression_curves",
            "add_wrinkles", "every_wrinkle_at_once"]
 
 WRINKLE_KINDS = ("forehead", "glabella", "crows_feet", "nasolabial")
@@ -297,7 +297,7 @@ def place_wrinkles(
         raise InputError(f"scan: {scan.n_vertices} vertices; expected the ICT topology (or a subdivision of it)")
     rng = np.random.default_rng(seed)
     index = {s: i for i, s in enumerate(sample.expression_names)}
-    V, F = scan.vertices, scan.faces
+    V = scan.vertices
     n = sample.n_vertices
     centre_forehead = (sample.region_labels == sample.region_names.index("forehead")) & (np.abs(V[:n, 0]) < 20.0)
     forehead_top = float(V[:n][centre_forehead, 1].max())
@@ -308,23 +308,66 @@ def place_wrinkles(
             curves = _family_curves(kind, V, sample.landmarks, forehead_top, rng)
             rows += curves
             kind_of += [kind] * len(curves)
-    c, k = len(rows), CURVE_POINTS
-    xy = np.stack([resample_polyline(P, k).points for _, _, P in rows])
-    pts, faces, bary = _lift(V, F, xy.reshape(-1, 2))
-    pts, faces, bary = pts.reshape(c, k, 3), faces.reshape(c, k), bary.reshape(c, k, 3)
-    seg = np.linalg.norm(np.diff(pts, axis=1), axis=2)
-    arc = np.concatenate([np.zeros((c, 1)), np.cumsum(seg, axis=1)], axis=1)
-    arc /= arc[:, -1:]
-    gains = np.zeros((c, len(sample.expression_names)))
-    depth, width = np.zeros(c), np.zeros(c)
+    gains = np.zeros((len(rows), len(sample.expression_names)))
+    depth, width = np.zeros(len(rows)), np.zeros(len(rows))
     for i, ((name, side, _), kind) in enumerate(zip(rows, kind_of)):
         for expr, g in _drivers(kind, side).items():
             gains[i, index[expr]] = g
         (d_lo, d_hi), (w_lo, w_hi) = _FAMILIES[kind]
         depth[i], width[i] = rng.uniform(d_lo, d_hi), rng.uniform(w_lo, w_hi)
-    return WrinkleCurves(names=tuple(r[0] for r in rows), kinds=tuple(kind_of), points=pts, faces=faces,
-                         barycentric=bary, arc_fraction=arc, gains=gains, max_depth=depth,
-                         max_width=width, min_width=_MIN_WIDTH_FRACTION * width)
+    return wrinkle_curves_on_surface(scan, [r[2] for r in rows], names=tuple(r[0] for r in rows),
+                                     kinds=tuple(kind_of), gains=gains, max_depth=depth, max_width=width,
+                                     min_width=_MIN_WIDTH_FRACTION * width)
+
+
+def wrinkle_curves_on_surface(
+    scan: Mesh,
+    polylines: Sequence[FloatArray],
+    *,
+    names: Sequence[str],
+    kinds: Sequence[str],
+    gains: FloatArray,
+    max_depth: FloatArray,
+    max_width: FloatArray,
+    min_width: FloatArray,
+) -> WrinkleCurves:
+    """Wrinkle lines drawn in the frontal plane, dropped onto the surface, as :class:`WrinkleCurves`.
+
+    Parameters
+    ----------
+    scan : Mesh
+        The rest surface (mm, the ICT frame: z out of the face).
+    polylines : sequence of (m_i, 2) float arrays, mm
+        Each line in the frontal (x, y) plane; resampled to :data:`CURVE_POINTS` points uniform
+        in arc length and dropped along -z onto the surface (Embree).
+    names, kinds : sequences of str, length c
+    gains : (c, e) float array
+        Activation ``clip(weights @ gains.T, 0, 1)``.
+    max_depth, max_width, min_width : (c,) float arrays, mm
+        See :class:`WrinkleCurves`.
+
+    Returns
+    -------
+    WrinkleCurves
+
+    Raises
+    ------
+    InputError
+        If a line runs off the face.
+    """
+    V, F = scan.vertices, scan.faces
+    c, k = len(polylines), CURVE_POINTS
+    xy = np.stack([resample_polyline(np.asarray(P, dtype=np.float64), k).points for P in polylines])
+    pts, faces, bary = _lift(V, F, xy.reshape(-1, 2))
+    pts, faces, bary = pts.reshape(c, k, 3), faces.reshape(c, k), bary.reshape(c, k, 3)
+    seg = np.linalg.norm(np.diff(pts, axis=1), axis=2)
+    arc = np.concatenate([np.zeros((c, 1)), np.cumsum(seg, axis=1)], axis=1)
+    arc /= arc[:, -1:]
+    return WrinkleCurves(names=tuple(names), kinds=tuple(kinds), points=pts, faces=faces, barycentric=bary,
+                         arc_fraction=arc, gains=np.asarray(gains, dtype=np.float64),
+                         max_depth=np.asarray(max_depth, dtype=np.float64),
+                         max_width=np.asarray(max_width, dtype=np.float64),
+                         min_width=np.asarray(min_width, dtype=np.float64))
 
 
 WRINKLE_EXPRESSIONS: dict[str, dict[str, float]] = {
@@ -418,7 +461,8 @@ def _influence(curves: WrinkleCurves, rest: FloatArray) -> list[tuple[IntArray, 
     return out
 
 
-def wrinkle_heights(curves: WrinkleCurves, rest: FloatArray, activation: FloatArray
+def wrinkle_heights(curves: WrinkleCurves, rest: FloatArray, activation: FloatArray, *,
+                    profile: Callable[[FloatArray, FloatArray, FloatArray], FloatArray] = wrinkle_profile,
                     ) -> tuple[BoolArray, IntArray, FloatArray]:
     """The wrinkles' heights at points of the rest surface, for each frame's activations.
 
@@ -430,6 +474,9 @@ def wrinkle_heights(curves: WrinkleCurves, rest: FloatArray, activation: FloatAr
         finer one of the same surface).
     activation : (T, c) float array
         Each wrinkle's activation per frame (:func:`wrinkle_activation`).
+    profile : callable, default :func:`wrinkle_profile`
+        ``profile(distance, depth, width)`` (mm, broadcasting): the cross-section, exactly 0
+        beyond :data:`INFLUENCE_WIDTHS` widths.
 
     Returns
     -------
@@ -454,7 +501,7 @@ def wrinkle_heights(curves: WrinkleCurves, rest: FloatArray, activation: FloatAr
     for i, (idx, dist, s) in enumerate(influence):
         d = a[:, i : i + 1] * curves.max_depth[i] * _depth_taper(s)[None]
         w = peak_width[:, i : i + 1] * _width_taper(s)[None]
-        local[:, column[idx]] += wrinkle_profile(dist[None], d, w)
+        local[:, column[idx]] += profile(dist[None], d, w)
     return mask, moving, local
 
 
@@ -466,6 +513,7 @@ def add_wrinkles(
     *,
     rest: FloatArray | None = None,
     batch_frames: int = 16,
+    profile: Callable[[FloatArray, FloatArray, FloatArray], FloatArray] = wrinkle_profile,
 ) -> WrinkledPerformance:
     """Add the wrinkles to a performance: heights along each frame's vertex normals.
 
@@ -483,6 +531,8 @@ def add_wrinkles(
         (the wrinkles ride with the skin). Default: ``large_scale[0]``.
     batch_frames : int, default 16
         Frames per block of the normal computation (bounds memory).
+    profile : callable, default :func:`wrinkle_profile`
+        The cross-section (see :func:`wrinkle_heights`).
 
     Returns
     -------
@@ -514,7 +564,7 @@ def add_wrinkles(
         raise InputError(f"rest: expected shape ({n}, 3), got {rest.shape}")
     a = wrinkle_activation(curves, W)  # (T, c)
     peak_width = curves.min_width[None] + a * (curves.max_width - curves.min_width)[None]  # (T, c)
-    mask, moving, local = wrinkle_heights(curves, rest, a)
+    mask, moving, local = wrinkle_heights(curves, rest, a, profile=profile)
     heights = np.zeros((T, n), dtype=np.float32)
     heights[:, moving] = local
     vertices = np.array(X, dtype=np.float32)

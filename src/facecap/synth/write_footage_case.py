@@ -20,11 +20,12 @@ from ..io.ict_sample import IctSample, load_ict_sample
 from .render_footage import SENSOR_DEFAULTS, FootageRenderer, ambient_occlusion, quantize, sensor_noise
 from .skin_albedo import SkinRegions, skin_albedo
 from .wrinkle_paint import PAINT_COLORS, paint_wrinkles
-from .wrinkle_scan import SubdividedScan, refine_near, subdivide_scan
+from .wrinkle_scan import SubdividedScan, carry_labels, refine_near, subdivide_scan
 from .wrinkles import add_wrinkles, place_wrinkles, wrinkle_expression_curves, wrinkle_heights
 from .write_synthetic_case import correspondence_json
 
-__all__ = ["FootageFiles", "stage_cameras", "write_footage_case", "MOCAP_RATE_HZ", "VIDEO_RATE_HZ"]
+__all__ = ["FootageFiles", "TakeFiles", "stage_cameras", "write_footage_case", "write_take_files", "MOCAP_RATE_HZ",
+           "VIDEO_RATE_HZ"]
 
 MOCAP_RATE_HZ = 50.0
 """Mocap rate of the generated takes: the paper's 50 fps motion cameras."""
@@ -56,6 +57,41 @@ class FootageFiles(NamedTuple):
     videos: tuple[Path, ...]
     masks: tuple[Path, ...]
     footage: Path
+
+
+class TakeFiles(NamedTuple):
+    """Paths of what every footage case holds beside its video (:func:`write_take_files`)."""
+
+    scan: Path
+    markers: Path
+    map: Path
+    cameras: Path
+    calibrations: tuple[Path, ...]
+
+
+def write_take_files(out: Path, scan: Any, case: SyntheticCase, cameras: Any, *, video_rate_hz: float,
+                     first_mocap_frame: int) -> TakeFiles:
+    """Write ``scan.obj``, ``take.c3d``, ``map.json``, ``cameras.json`` and ``calibration_<cam>.yml`` into ``out``.
+
+    ``cameras.json`` is the facecap camera file (the footage's rate and the mocap frame of video
+    frame 0); the calibrations are OpenCV FileStorage files, one a camera.
+    """
+    from ..cameras import CameraSetup, write_camera_file, write_opencv_calibration
+
+    calibrations = []
+    for cam in cameras:
+        calibrations.append(out / f"calibration_{cam.name}.yml")
+        write_opencv_calibration(calibrations[-1], cam)
+    cameras_path = out / "cameras.json"
+    write_camera_file(cameras_path, CameraSetup(tuple(cameras), video_rate_hz=video_rate_hz,
+                                                first_mocap_frame=float(first_mocap_frame)))
+    scan_path = out / "scan.obj"
+    write_mesh(scan, scan_path)
+    markers_path = out / "take.c3d"
+    write_markers(case.markers, markers_path)
+    map_path = out / "map.json"
+    atomic_write_text(map_path, correspondence_json(case.correspondence))
+    return TakeFiles(scan_path, markers_path, map_path, cameras_path, tuple(calibrations))
 
 
 def _look_at(centre: FloatArray, target: FloatArray, up: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -129,12 +165,8 @@ def stage_cameras(
 
 def _fine_regions(sample: IctSample, upsample: Any, scan_vertices: FloatArray) -> SkinRegions:
     """The sample's face regions carried to the fine mesh: each new vertex takes its heaviest parent's."""
-    S = upsample.tocsr()
-    rows = np.repeat(np.arange(S.shape[0]), np.diff(S.indptr))
-    order = np.lexsort((-S.data, rows))
-    first = np.unique(rows[order], return_index=True)[1]
-    parent = S.indices[order][first]
-    return SkinRegions(sample.region_labels[parent], sample.region_names, scan_vertices[sample.landmarks[48:60]])
+    return SkinRegions(carry_labels(upsample, sample.region_labels), sample.region_names,
+                       scan_vertices[sample.landmarks[48:60]])
 
 
 def _render_mesh(fine: SubdividedScan, wrinkle_mask: np.ndarray, max_edge_mm: float | None) -> SubdividedScan:
@@ -302,7 +334,7 @@ def write_footage_case(
     from the valley line to the profile's zero crossing), ``activation``
     (T, c), ``curve_colors`` (c, 3) linear RGB, ``paint_index`` (c,).
     """
-    from ..cameras import CameraSetup, write_camera_file, write_image, write_image_sequence, write_opencv_calibration
+    from ..cameras import write_image, write_image_sequence
 
     if bits not in (8, 16):
         raise InputError(f"bits: expected 8 or 16, got {bits!r}")
@@ -404,12 +436,8 @@ def write_footage_case(
     for cam, label in zip(cameras, masks_img):
         masks.append(out / f"mask_{cam.name}.png")
         write_image(masks[-1], label)
-    calibrations = []
-    for cam in cameras:
-        calibrations.append(out / f"calibration_{cam.name}.yml")
-        write_opencv_calibration(calibrations[-1], cam)
-    cameras_path = out / "cameras.json"
-    write_camera_file(cameras_path, CameraSetup(tuple(cameras), video_rate_hz=VIDEO_RATE_HZ, first_mocap_frame=float(first_mocap_frame)))
+    take_files = write_take_files(out, mesh, case, cameras, video_rate_hz=VIDEO_RATE_HZ,
+                                  first_mocap_frame=first_mocap_frame)
     footage_path = out / "footage.json"
     atomic_write_text(footage_path, json.dumps({
         "video_rate_hz": VIDEO_RATE_HZ, "mocap_rate_hz": MOCAP_RATE_HZ, "first_mocap_frame": int(first_mocap_frame),
@@ -421,12 +449,6 @@ def write_footage_case(
         "mask_labels": "0 = no paint, 1 + i = paint i",
         "wrinkles": {name: int(i) for name, i in zip(wrinkle_curves.names, painted.color_index)},
     }, indent=1))
-    scan_path = out / "scan.obj"
-    write_mesh(mesh, scan_path)
-    markers_path = out / "take.c3d"
-    write_markers(case.markers, markers_path)
-    map_path = out / "map.json"
-    atomic_write_text(map_path, correspondence_json(case.correspondence))
     truth_path = out / "truth.npz"
     arrays = {
         "vertices": wrinkled.vertices, "large_scale": large, "wrinkle_mask": wrinkled.mask,
@@ -441,5 +463,5 @@ def write_footage_case(
     with atomic_path(truth_path) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, **arrays)
-    return FootageFiles(scan_path, markers_path, map_path, truth_path, cameras_path, tuple(calibrations),
-                        videos, tuple(masks), footage_path)
+    return FootageFiles(take_files.scan, take_files.markers, take_files.map, truth_path, take_files.cameras,
+                        take_files.calibrations, videos, tuple(masks), footage_path)
