@@ -58,7 +58,7 @@ def test_height_ramp_gives_the_analytic_tangent_space_normal(uv_of_xy, expected_
     inside = maps.raster.triangle.reshape(32, 32) >= 0
     ex, ey = expected_of_slope(slope)
     expected = np.array([ex, ey, 1.0]) / np.sqrt(1 + slope ** 2)
-    np.testing.assert_allclose(n[inside], np.broadcast_to(expected, n[inside].shape), atol=1e-12)
+    np.testing.assert_allclose(n[inside], np.broadcast_to(expected, n[inside].shape), atol=1e-6)
     np.testing.assert_array_equal(n[~inside], np.broadcast_to([0.0, 0.0, 1.0], n[~inside].shape))
     encoded = maps.normal_map(V, slope * V[:, 0])
     assert encoded.dtype == np.uint16
@@ -76,9 +76,9 @@ def test_tilted_plane_keeps_the_tangent_frame():
     h = 0.1 * V[:, 1]
     flat = maps.tangent_normals(V, h)
     moved = maps.tangent_normals(V @ R.T + [5.0, -3.0, 7.0], h)
-    np.testing.assert_allclose(moved, flat, atol=1e-12)
+    np.testing.assert_allclose(moved, flat, atol=1e-6)  # float32 texel arithmetic
     inside = maps.raster.triangle.reshape(32, 32) >= 0
-    np.testing.assert_allclose(flat[inside][0], np.array([0.0, -0.1, 1.0]) / np.sqrt(1.01), atol=1e-12)
+    np.testing.assert_allclose(flat[inside][0], np.array([0.0, -0.1, 1.0]) / np.sqrt(1.01), atol=1e-6)
 
 
 def test_seam_keeps_each_sides_values():
@@ -110,9 +110,9 @@ def test_seam_keeps_each_sides_values():
     np.testing.assert_allclose(disp[right_texels], slope * x_right[right_texels], atol=1e-5)
     c = np.sqrt(1 + slope ** 2)
     np.testing.assert_allclose(n[left_texels], np.broadcast_to(np.array([-slope, 0, 1]) / c, (left_texels.sum(), 3)),
-                               atol=1e-12)
+                               atol=1e-6)
     np.testing.assert_allclose(n[right_texels], np.broadcast_to(np.array([0, slope, 1]) / c, (right_texels.sum(), 3)),
-                               atol=1e-12)
+                               atol=1e-6)
     # the padding between the islands copies each side's own value
     row = disp[32]
     assert row[29] == pytest.approx(row[28]) and row[35] == pytest.approx(row[36])

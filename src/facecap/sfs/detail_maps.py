@@ -46,8 +46,22 @@ FLAT_ENCODED = np.array([32768, 32768, 65535], dtype=np.uint16)
 """:data:`FLAT_NORMAL` as the 16-bit normal map stores it: ``round((n + 1) / 2 * 65535)``."""
 
 
+_TEXELS_PER_CHUNK = 1 << 17
+"""Texels whose normals are computed at once (float32 temporaries that stay in cache)."""
+
+
+def _dot(A: FloatArray, B: FloatArray) -> FloatArray:
+    return np.einsum("kd,kd->k", A, B)
+
+
+def _gather_corners(G: np.ndarray, values: FloatArray, n: int) -> FloatArray:
+    """(n, 3): the sum at each vertex of the (m, 3, 3) values its triangles give their corners."""
+    flat = values.reshape(-1, 3)
+    return np.stack([np.bincount(G.ravel(), weights=flat[:, c], minlength=n) for c in range(3)], axis=1)
+
+
 def _unit(X: FloatArray) -> FloatArray:
-    length = np.linalg.norm(X, axis=-1, keepdims=True)
+    length = np.sqrt(_dot(X, X))[:, None]
     return X / np.where(length > 0, length, 1.0)
 
 
@@ -140,6 +154,23 @@ class DetailMaps:
         where[self._vertices] = np.arange(self._vertices.size)
         self._texel_corners = where[self.F[self._triangles]]  # (k, 3) among _vertices
         self._region_at_vertices = where[self.region]  # -1: a region vertex no texel uses
+        # tangents live at the (vertex, UV) corners of the ring's triangles, so a UV seam keeps one a side
+        uvt = self.uv_triangles[self._ring]
+        st = self.uvs[np.where(uvt >= 0, uvt, 0)]
+        self._ring_d1, self._ring_d2 = st[:, 1] - st[:, 0], st[:, 2] - st[:, 0]
+        det = self._ring_d1[:, 0] * self._ring_d2[:, 1] - self._ring_d2[:, 0] * self._ring_d1[:, 1]
+        self._ring_ok = np.all(uvt >= 0, axis=1) & (np.abs(det) > 1e-14)
+        self._ring_det = np.where(self._ring_ok, det, 1.0)
+        n_uv = max(self.uvs.shape[0], 1)
+        keys, inverse = np.unique((self._ring_F * n_uv + np.where(uvt >= 0, uvt, 0)).ravel(), return_inverse=True)
+        self._corner_key, self._n_keys = inverse.ravel(), keys.size
+        in_ring = np.searchsorted(self._ring, self._triangles)
+        texel_keys = self._corner_key.reshape(-1, 3)[in_ring]
+        used_keys, texel_keys = np.unique(texel_keys, return_inverse=True)
+        self._used_keys, self._texel_keys = used_keys, texel_keys.reshape(-1, 3)
+        self._key_vertex = where[self._ring_vertices[keys[used_keys] // n_uv]]  # the key's vertex among _vertices
+        # MikkTSpace's sign: the bitangent is sign * N x T; for a consistently wound mesh it is the UV winding's
+        self._texel_sign = np.where(det[in_ring] < 0, -1.0, 1.0).astype(np.float32)
         # the padded texels that copy an active texel
         active_mask = np.zeros(self.size * self.size, bool)
         active_mask[self._covered_active] = True
@@ -189,11 +220,11 @@ class DetailMaps:
 
         Returns
         -------
-        (size, size, 3) float64 array
+        (size, size, 3) float32 array
             ``(x, y, z)``: along the tangent (``+u``), the bitangent (``+v``) and the normal; ``(0, 0, 1)`` where
-            there is no detail.
+            there is no detail. Computed in float32 (the 16-bit map's step is 3e-5).
         """
-        out = np.zeros((self.size * self.size, 3))
+        out = np.zeros((self.size * self.size, 3), dtype=np.float32)
         out[:, 2] = 1.0
         out[self._covered_active] = self._active_normals(V, heights)
         out[self._pad_target] = out[self._pad_source]
@@ -222,59 +253,50 @@ class DetailMaps:
         return out.reshape(self.size, self.size, 3)
 
     def _active_normals(self, V: Any, heights: Any) -> FloatArray:
-        """(k, 3): the tangent-space detailed normal at the active covered texels."""
-        from .vertex_gradient import vertex_gradient
-
+        """(k, 3) float32: the tangent-space detailed normal at the active covered texels."""
         X = as_vertices(V, name="V")
         if X.shape[0] < self.n_vertices_min:
             raise InputError(f"V: expected the mesh's vertices (at least {self.n_vertices_min}), got {X.shape[0]}")
         h = self._heights(heights)
         if self._covered_active.size == 0:
-            return np.zeros((0, 3))
+            return np.zeros((0, 3), dtype=np.float32)
         P = X[self._ring_vertices]
         G = self._ring_F
         # base normals (area-weighted, as the frame stage's) and the detailed normals at the texels' vertices
-        fn = np.cross(P[G[:, 1]] - P[G[:, 0]], P[G[:, 2]] - P[G[:, 0]])
-        N = np.stack([np.bincount(G.ravel(), weights=np.repeat(fn[:, c], 3), minlength=P.shape[0])
-                      for c in range(3)], axis=1)
-        N = _unit(N)[self._rows]
-        grad = vertex_gradient(P, G, rows=self._rows, columns=self._region_cols).apply(h[self._region_pick])
-        grad -= np.sum(grad * N, axis=1, keepdims=True) * N
-        detailed = _unit(N - grad)
-        tangent, sign = self._corner_tangents(P, fn)
-        k3 = self._texel_corners
-        w = self._weights[:, :, None]
-        n_t = _unit(np.sum(w * N[k3], axis=1))
-        d_t = _unit(np.sum(w * detailed[k3], axis=1))
-        t_t = np.sum(w * tangent, axis=1)
-        t_t = _unit(t_t - np.sum(t_t * n_t, axis=1, keepdims=True) * n_t)
-        b_t = sign[:, None] * np.cross(n_t, t_t)
-        return np.stack([np.sum(d_t * t_t, axis=1), np.sum(d_t * b_t, axis=1), np.sum(d_t * n_t, axis=1)], axis=1)
-
-    def _corner_tangents(self, P: FloatArray, fn: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """Per active texel: its triangle's three corner tangents (k, 3, 3) and the triangle's UV handedness (k,)."""
-        ring = self._ring
-        G = self._ring_F
-        uvt = self.uv_triangles[ring]
-        has_uv = np.all(uvt >= 0, axis=1)
-        st = self.uvs[np.where(uvt >= 0, uvt, 0)]
         e1, e2 = P[G[:, 1]] - P[G[:, 0]], P[G[:, 2]] - P[G[:, 0]]
-        d1, d2 = st[:, 1] - st[:, 0], st[:, 2] - st[:, 0]
-        det = d1[:, 0] * d2[:, 1] - d2[:, 0] * d1[:, 1]
-        ok = has_uv & (np.abs(det) > 1e-14)
-        safe = np.where(ok, det, 1.0)
-        T = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) / safe[:, None]
-        B = (e2 * d1[:, 0:1] - e1 * d2[:, 0:1]) / safe[:, None]
-        area = 0.5 * np.linalg.norm(fn, axis=1)
-        Tw = _unit(T) * (area * ok)[:, None]
-        sign_face = np.where(np.sum(np.cross(fn, T) * B, axis=1) < 0, -1.0, 1.0)
-        # accumulate over (vertex, uv) corners: a seam keeps each side's tangent
-        n_uv = max(self.uvs.shape[0], 1)
-        key = G.astype(np.int64) * n_uv + np.where(uvt >= 0, uvt, 0)
-        keys, inverse = np.unique(key.ravel(), return_inverse=True)
-        inverse = inverse.ravel()
+        fn = np.cross(e1, e2)
+        N = _unit(_gather_corners(G, fn[:, None, :].repeat(3, axis=1), P.shape[0])[self._rows])
+        # the vertex gradient of the heights (vertex_gradient's: each triangle's piecewise-linear gradient,
+        # area-weighted at the vertices) computed directly, since only one function is wanted per frame:
+        # area * grad_f = sum_i h_i (n_f x e_i) / 2, e_i the edge opposite corner i, counter-clockwise
+        h_ring = np.zeros(P.shape[0])
+        h_ring[self._region_cols] = h[self._region_pick]
+        unit_fn = _unit(fn)
+        opposite = np.stack([P[G[:, 2]] - P[G[:, 1]], P[G[:, 0]] - P[G[:, 2]], e1], axis=1)
+        area_grad = 0.5 * np.einsum("fk,fkd->fd", h_ring[G], np.cross(unit_fn[:, None, :], opposite))
+        area = 0.5 * np.sqrt(_dot(fn, fn))
+        total = np.bincount(G.ravel(), weights=np.repeat(area, 3), minlength=P.shape[0])[self._rows]
+        grad = _gather_corners(G, area_grad[:, None, :].repeat(3, axis=1), P.shape[0])[self._rows]
+        grad /= np.maximum(total, 1e-300)[:, None]
+        grad -= _dot(grad, N)[:, None] * N
+        detailed = _unit(N - grad)
+        # dP/du of each triangle (its UV parameterisation), area-weighted over the (vertex, UV) corners
+        d1, d2 = self._ring_d1, self._ring_d2
+        T = (e1 * d2[:, 1:2] - e2 * d1[:, 1:2]) / self._ring_det[:, None]
+        Tw = _unit(T) * (area * self._ring_ok)[:, None]
         per_corner = np.repeat(Tw, 3, axis=0)
-        acc = np.stack([np.bincount(inverse, weights=per_corner[:, c], minlength=keys.size) for c in range(3)], 1)
-        corner_tangent = acc[inverse].reshape(-1, 3, 3)  # (ring triangles, 3 corners, 3)
-        position = np.searchsorted(ring, self._triangles)
-        return corner_tangent[position], sign_face[position]
+        tangent = np.stack([np.bincount(self._corner_key, weights=per_corner[:, c], minlength=self._n_keys)
+                            for c in range(3)], axis=1)[self._used_keys]
+        corner = np.concatenate([N[self._key_vertex], detailed[self._key_vertex], tangent], axis=1)
+        corner = corner.astype(np.float32)
+        out = np.empty((self._texel_keys.shape[0], 3), dtype=np.float32)
+        w = self._weights.astype(np.float32)
+        for lo in range(0, out.shape[0], _TEXELS_PER_CHUNK):
+            hi = min(lo + _TEXELS_PER_CHUNK, out.shape[0])
+            k3, wk = self._texel_keys[lo:hi], w[lo:hi]
+            q = wk[:, 0:1] * corner[k3[:, 0]] + wk[:, 1:2] * corner[k3[:, 1]] + wk[:, 2:3] * corner[k3[:, 2]]
+            n_t, d_t, t_t = _unit(q[:, 0:3]), _unit(q[:, 3:6]), q[:, 6:9]
+            t_t = _unit(t_t - _dot(t_t, n_t)[:, None] * n_t)
+            b_t = self._texel_sign[lo:hi, None] * np.cross(n_t, t_t)
+            out[lo:hi, 0], out[lo:hi, 1], out[lo:hi, 2] = _dot(d_t, t_t), _dot(d_t, b_t), _dot(d_t, n_t)
+        return out
