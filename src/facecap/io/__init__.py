@@ -38,6 +38,8 @@ In the order a user meets them:
   ``frame_blocks.py`` (:func:`check_frame_blocks`, :func:`as_frame_count`,
   :func:`path_with_suffix`); :func:`check_uvs` (``write_mesh.py``) checks the UVs
   a mesh writer writes.
+- :func:`write_detail_maps`, :func:`write_maps_index` (``write_detail_maps.py``): the detail's
+  per-video-frame displacement (EXR, mm) and normal maps (16-bit PNG) and ``maps/maps.json``.
 - :func:`write_gltf` (``write_gltf.py``): a ``.glb`` review file, the mesh in
   metres with morph targets, their weights animation and marker nodes
   (:func:`triangle_corners`: a triangle's corners among the polygons' corners).
@@ -82,6 +84,7 @@ from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditi
 from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
+from .write_detail_maps import MAPS_FOLDER, detail_map_names, write_detail_maps, write_maps_index
 from .write_mesh import check_uvs, write_mesh
 from .result_layout import (
     EXPORT_FORMATS,
@@ -111,6 +114,10 @@ from .read_region_mask import read_region_mask
 from .ict_sample import IctSample, bundled_path, load_ict_sample
 
 __all__ = [
+    "MAPS_FOLDER",
+    "detail_map_names",
+    "write_detail_maps",
+    "write_maps_index",
     "load_ict_sample",
     "bundled_path",
     "IctSample",

@@ -11,6 +11,8 @@ In the order a user meets them:
   a curve (a muscle's centre line, a wrinkle), as a :class:`ResampledPolyline`.
 - :func:`nearest_on_polyline` (``nearest_on_polyline.py``): each point's distance to a
   polyline and where along it its nearest point lies (a wrinkle's valley line).
+- :class:`UVRaster` (``uv_raster.py``): which UV triangle and barycentric weights each texel of a
+  square map takes, with edge padding (the detail's maps).
 - :func:`face_normals`, :func:`vertex_normals` (``vertex_normals.py``): normals
   of one frame or a stack, everywhere or at a few vertices (area-weighted).
 - :func:`duplicate_representatives` (``duplicate_representatives.py``): which vertices sit at
@@ -47,11 +49,13 @@ from .median_edge_length import median_edge_length
 from .nearest_on_polyline import nearest_on_polyline
 from .resample_polyline import ResampledPolyline, resample_polyline
 from .review_mesh import ReviewMesh, review_mesh
+from .uv_raster import UVRaster
 from .vertex_normals import face_normals, vertex_normals
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
 from .duplicate_representatives import duplicate_representatives
 
 __all__ = [
+    "UVRaster",
     "check_mesh",
     "SpdFactor",
     "available_backends",

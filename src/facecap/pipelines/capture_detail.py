@@ -25,10 +25,13 @@ import numpy as np
 
 from ..errors import FacecapWarning, InputError
 
-__all__ = ["DetailCapture", "capture_detail"]
+__all__ = ["DetailCapture", "capture_detail", "write_detail_frame_maps"]
 
 CHUNK_VIDEO_FRAMES = 8
 """Video frames per runner task (each also solves 3 frames of halo on each side)."""
+
+DEFAULT_MAP_SIZE = 1024
+"""Texels along each side of the detail's maps (``--map-size``)."""
 
 
 class DetailCapture(NamedTuple):
@@ -64,7 +67,8 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                    scheduler: str | None = "synchronous", n_workers: int = 2,
                    work_dir: Any = None, exports: Sequence[str] = (), chunk_frames: int = CHUNK_VIDEO_FRAMES,
                    progress: bool = False, options: Mapping[str, Any] | None = None,
-                   export_options: Mapping[str, Any] | None = None, overwrite: bool = False) -> DetailCapture:
+                   export_options: Mapping[str, Any] | None = None, overwrite: bool = False,
+                   map_size: int = DEFAULT_MAP_SIZE) -> DetailCapture:
     """Add the fine detail the footage shows to a result.
 
     Parameters
@@ -99,6 +103,10 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
         :data:`~facecap.sfs.DETAIL_DEFAULTS`' keys.
     export_options : mapping, optional
     overwrite : bool, default False
+    map_size : int, default 1024
+        Texels along each side of the per-video-frame displacement and normal maps on the scan's UVs
+        (``maps/``, :func:`write_detail_frame_maps`); 0: no maps. A scan without UVs gets none either
+        (``detail.json`` says why).
 
     Returns
     -------
@@ -227,6 +235,11 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                             "residual": float(residual[j]), "residual_base": float(residual_before[j]),
                             "height_rms_mm": float(np.sqrt(np.mean(heights[j] ** 2)))} for j in range(n_video)],
             }
+            # -- the detail's maps on the scan's UVs (maps/) ------------------------------------------------
+            t_maps = time.perf_counter()
+            document["maps"] = write_detail_frame_maps(writer.path("maps"), result.mesh, heights, region,
+                                                       stage.large_scale, mocap_frames, map_size=map_size)
+            timings["maps_s"] = time.perf_counter() - t_maps
             writer.path("detail.json").write_text(json.dumps(document, indent=1))
             np.save(writer.path("detail_region.npy"), region)
             timings["write_s"] = time.perf_counter() - t
@@ -243,3 +256,57 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
         if own_work:
             shutil.rmtree(work, ignore_errors=True)
     return DetailCapture(Path(final), n_video, int(region.size), timings)
+
+
+def write_detail_frame_maps(folder: str | os.PathLike[str], mesh: Any, heights: np.ndarray, region: np.ndarray,
+                            base_at: Any, mocap_frames: np.ndarray, *, map_size: int = DEFAULT_MAP_SIZE,
+                            padding: int = 4) -> dict[str, Any]:
+    """Write every video frame's displacement and normal maps on the scan's UVs; what ``detail.json`` records.
+
+    Parameters
+    ----------
+    folder : path-like
+        The maps folder (created).
+    mesh : facecap.structures.Mesh
+        The scan (its UVs; its triangles are the base surface's).
+    heights : (V, r) float32 array, mm
+    region : (r,) int array
+    base_at : callable
+        ``base_at(j)``: the base surface (n, 3) mm at video frame ``j``.
+    mocap_frames : (V,) float array
+    map_size : int, default 1024
+        0: no maps.
+    padding : int, default 4
+
+    Returns
+    -------
+    dict
+        ``{'folder': 'maps', 'size': ..., 'setup_s': ..., 'ms_per_frame': ...}``, or ``{'none': why}``.
+    """
+    from ..io.write_detail_maps import MAPS_FOLDER, write_detail_maps, write_maps_index
+    from ..io.write_gltf import triangle_corners
+    from ..sfs.detail_maps import DetailMaps
+
+    if int(map_size) != map_size or map_size < 0:
+        raise InputError(f"map_size: expected a whole number of texels >= 0, got {map_size!r}")
+    if map_size == 0:
+        return {"none": "map_size is 0 (--map-size 0)"}
+    if mesh.uvs is None:
+        return {"none": "the scan has no UVs (texture coordinates), so there is no atlas to hold the maps"}
+    if mesh.uv_indices is None:
+        uv_triangles = mesh.faces  # one UV per vertex
+    else:
+        uv_triangles = np.asarray(mesh.uv_indices, dtype=np.int64)[triangle_corners(mesh)]
+    t = time.perf_counter()
+    maps = DetailMaps(mesh.uvs, uv_triangles, mesh.faces, region, int(map_size), padding=padding)
+    setup_s = time.perf_counter() - t
+    folder = Path(folder)
+    folder.mkdir(exist_ok=True)
+    t = time.perf_counter()
+    for j in range(heights.shape[0]):
+        write_detail_maps(folder, j, maps.displacement(heights[j]), maps.normal_map(base_at(j), heights[j]),
+                          mocap_frame=float(mocap_frames[j]))
+    per_frame = (time.perf_counter() - t) / max(heights.shape[0], 1)
+    write_maps_index(folder, size=int(map_size), video_frames=list(range(heights.shape[0])),
+                     mocap_frames=[float(m) for m in mocap_frames], padding=padding)
+    return {"folder": MAPS_FOLDER, "size": int(map_size), "setup_s": setup_s, "ms_per_frame": 1000 * per_frame}
