@@ -108,9 +108,17 @@ def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points:
         peak = image.max(axis=2) if image.ndim == 3 else image
         # a pixel is clipped when any of the four it is read from is: dilate the clipped mask by one
         hot = cv2.dilate((peak >= CLIPPED_LEVEL).astype(np.uint8), np.ones((2, 2), np.uint8)).astype(np.float32)
-        map_x, map_y = pixels[:, :1], pixels[:, 1:]
-        value = cv2.remap(grey, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)[:, 0]
-        near_hot = cv2.remap(hot, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)[:, 0]
+        # OpenCV's remap takes maps under 32767 a side: the samples laid out in rows of 1024
+        k = pixels.shape[0]
+        rows_needed = -(-k // 1024)
+        padded = np.zeros((rows_needed * 1024, 2), dtype=np.float32)
+        padded[:k] = pixels
+        map_x = padded[:, 0].reshape(rows_needed, 1024)
+        map_y = padded[:, 1].reshape(rows_needed, 1024)
+        value = cv2.remap(grey, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                          borderValue=0).ravel()[:k]
+        near_hot = cv2.remap(hot, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                             borderValue=0).ravel()[:k]
         rows = np.flatnonzero(seen)
         intensity[c, rows] = value
         cos = np.sum(N[rows] * to_eye[c, rows], axis=1)
