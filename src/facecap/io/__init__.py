@@ -84,7 +84,7 @@ from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditi
 from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
-from .write_detail_maps import MAPS_FOLDER, detail_map_names, write_detail_maps, write_maps_index
+from .write_detail_maps import MAPS_FOLDER, MAPS_INDEX, detail_map_names, write_detail_maps, write_maps_index
 from .write_mesh import check_uvs, write_mesh
 from .result_layout import (
     EXPORT_FORMATS,
@@ -117,6 +117,7 @@ __all__ = [
     "MAPS_FOLDER",
     "detail_map_names",
     "write_detail_maps",
+    "MAPS_INDEX",
     "write_maps_index",
     "load_ict_sample",
     "bundled_path",

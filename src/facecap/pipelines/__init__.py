@@ -76,7 +76,7 @@ from typing import Any
 _PUBLIC = {
     "animate_scan": ("animate_scan", "AnimationResult", "OFFSET_WARNING_MM"),
     "capture_wrinkles": ("capture_wrinkles", "WrinkleCapture"),
-    "capture_detail": ("capture_detail", "DetailCapture"),
+    "capture_detail": ("capture_detail", "DetailCapture", "write_detail_frame_maps"),
     "plan_scans": ("plan_scans", "conditioned_take_path"),
     "register_planned_scans": ("register_planned_scans",),
     "blend_take": ("blend_take",),

@@ -27,6 +27,10 @@ from ..errors import FacecapWarning, InputError
 
 __all__ = ["DetailCapture", "capture_detail", "write_detail_frame_maps"]
 
+REFLECTANCE_PATCH_MM = 20.0
+"""Side of the patches the specular lobe is fitted per (then blended over half of it): the forehead and nose
+are oilier than the cheeks, a few centimetres apart."""
+
 CHUNK_VIDEO_FRAMES = 8
 """Video frames per runner task (each also solves 3 frames of halo on each side)."""
 
@@ -125,8 +129,9 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
     from ..mesh.vertex_normals import vertex_normals
     from ..runner import run_frames
     from ..sfs.detail_frame_stage import DetailFrameStage
-    from ..sfs.estimate_reflectance import estimate_reflectance
+    from ..sfs.estimate_reflectance import REST_MISFIT_LIMIT, estimate_reflectance, rest_misfit
     from ..sfs.select_detail_region import select_detail_region
+    from ..sfs.surface_low_pass import SurfaceLowPass
     from ..units import mm_per_unit
     from .finish_result import finish_result
 
@@ -187,8 +192,31 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                               irradiance=frame.irradiance[:, region], to_eye=frame.to_eye[:, region],
                               intensity=frame.intensity[:, region], weight=frame.weight[:, region])
 
+    # a lobe per patch of about REFLECTANCE_PATCH_MM, blended across the patches' edges
+    stage_for_mesh = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup.describe(), mocap_frames,
+                                      region, np.ones(region.size), 0.0, 1.0, encoding, options)
+    rest_positions = result.mesh.vertices[region]
+    patches = np.unique(np.floor(rest_positions / REFLECTANCE_PATCH_MM).astype(np.int64), axis=0,
+                        return_inverse=True)[1].ravel()
+    region_faces, _ = stage_for_mesh._region_mesh()
+    blend = SurfaceLowPass(rest_positions, region_faces, REFLECTANCE_PATCH_MM / 2)
     reflectance = estimate_reflectance([restricted(rest)], ambient=setup.ambient, per_sample=per_sample_albedo,
-                                       specular=specular)
+                                       specular=specular, patches=patches if per_sample_albedo else None,
+                                       smooth=lambda values: blend(values))
+    misfit = rest_misfit([restricted(rest)], reflectance, ambient=setup.ambient)
+    trusted = np.isfinite(misfit) & (misfit <= REST_MISFIT_LIMIT)
+    if not trusted.any():
+        raise InputError("the rest frame's shading cannot be explained anywhere in the region (check the lights "
+                         "file, the cameras and --transfer)")
+    left_out = float(1.0 - trusted.mean())
+    if left_out > 0.3:
+        warnings.warn(f"{100 * left_out:.0f} % of the region is left out: the cameras disagree there at the rest "
+                      "frame by more than the shading model explains (the layer below misplaced, or the lights "
+                      "or cameras off)", FacecapWarning, stacklevel=2)
+    region = region[trusted]
+    reflectance = reflectance._replace(albedo=reflectance.albedo[trusted],
+                                       k_s=np.broadcast_to(reflectance.k_s, trusted.shape)[trusted],
+                                       alpha=np.broadcast_to(reflectance.alpha, trusted.shape)[trusted])
     timings["region_and_reflectance_s"] = time.perf_counter() - t
     stage = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup.describe(), mocap_frames, region,
                              reflectance.albedo, reflectance.k_s, reflectance.alpha, encoding, options)
@@ -224,12 +252,18 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                     shutil.copyfile(result_dir / name, writer.path(name))
             document = {
                 "method": "lo-spacetime-shape-from-shading", "units": "mm",
-                "reflectance": {"k_s": reflectance.k_s, "alpha": reflectance.alpha,
+                "reflectance": {"k_s_median": float(np.median(reflectance.k_s)),
+                                "k_s_range": [float(np.min(reflectance.k_s)), float(np.max(reflectance.k_s))],
+                                "alpha_median": float(np.median(reflectance.alpha)),
+                                "alpha_range": [float(np.min(reflectance.alpha)), float(np.max(reflectance.alpha))],
+                                "lobe": "per patch of %g mm, blended" % REFLECTANCE_PATCH_MM
+                                        if np.ndim(reflectance.k_s) else "one",
                                 "albedo": "per sample (rest frame)" if per_sample_albedo else "uniform",
                                 "specular": bool(specular),
                                 "albedo_median": float(np.median(reflectance.albedo)),
                                 "rest_residual": reflectance.residual},
                 "transfer": encoding, "region_vertices": int(region.size), "clipped_share": clipped,
+                "left_out_by_rest_misfit": left_out, "rest_misfit_limit": REST_MISFIT_LIMIT,
                 "options": stage.options,
                 "frames": [{"video_frame": j, "mocap_frame": float(mocap_frames[j]),
                             "residual": float(residual[j]), "residual_base": float(residual_before[j]),

@@ -9,20 +9,26 @@ has the method step by step and the decisions.
 - :func:`vertex_gradient`, :class:`VertexGradient` (``vertex_gradient.py``): heights to normals.
 - :func:`solve_heights`, :func:`shade_frame`, :class:`ShadedFrame`, :class:`HeightWeights`,
   :class:`HeightSolve`, :data:`TEMPORAL_REACH` (``solve_heights.py``): the space-time solve (eqs. 6-8).
-- :func:`estimate_reflectance`, :class:`Reflectance`, :data:`PHONG_EXPONENTS` (``estimate_reflectance.py``):
-  albedo and Phong lobe from the rest frame.
+- :func:`estimate_reflectance`, :func:`rest_misfit`, :class:`Reflectance`, :data:`PHONG_EXPONENTS`,
+  :data:`REST_MISFIT_LIMIT` (``estimate_reflectance.py``): albedo and Phong lobe from the rest frame, and
+  the samples it cannot explain.
 - :class:`SurfaceLowPass` (``surface_low_pass.py``): the slow gain's filter.
 - :func:`sample_footage`, :class:`FootageSamples`, :data:`LUMINANCE`, :data:`CLIPPED_LEVEL`
   (``sample_footage.py``): footage onto the skin.
+- :func:`camera_blur`, :data:`DEFAULT_BLUR_PX` (``camera_blur.py``): the camera's point spread on the skin.
 - :func:`select_detail_region` (``select_detail_region.py``): the default region.
 - :class:`DetailFrameStage`, :data:`DETAIL_DEFAULTS` (``detail_frame_stage.py``): a window of video
   frames on the frame runner.
+- :class:`DetailMaps`, :data:`FLAT_NORMAL`, :data:`FLAT_ENCODED` (``detail_maps.py``): the detail's
+  displacement and tangent-space normal maps on the scan's UVs.
 """
 
 from __future__ import annotations
 
+from .camera_blur import DEFAULT_BLUR_PX, camera_blur
 from .detail_frame_stage import DETAIL_DEFAULTS, DetailFrameStage
-from .estimate_reflectance import PHONG_EXPONENTS, Reflectance, estimate_reflectance
+from .detail_maps import FLAT_ENCODED, FLAT_NORMAL, DetailMaps
+from .estimate_reflectance import PHONG_EXPONENTS, REST_MISFIT_LIMIT, Reflectance, estimate_reflectance, rest_misfit
 from .phong_shading import PhongShading, phong_shading
 from .sample_footage import CLIPPED_LEVEL, LUMINANCE, FootageSamples, sample_footage
 from .select_detail_region import BOUNDARY_RINGS, MIN_LIGHT_SHARE, MIN_VIEW_WEIGHT, select_detail_region
@@ -34,9 +40,11 @@ __all__ = [
     "phong_shading", "PhongShading",
     "vertex_gradient", "VertexGradient",
     "solve_heights", "shade_frame", "ShadedFrame", "HeightWeights", "HeightSolve", "TEMPORAL_REACH",
-    "estimate_reflectance", "Reflectance", "PHONG_EXPONENTS",
+    "estimate_reflectance", "rest_misfit", "Reflectance", "PHONG_EXPONENTS", "REST_MISFIT_LIMIT",
     "SurfaceLowPass",
     "sample_footage", "FootageSamples", "LUMINANCE", "CLIPPED_LEVEL",
     "select_detail_region", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS",
     "DetailFrameStage", "DETAIL_DEFAULTS",
+    "DetailMaps", "FLAT_NORMAL", "FLAT_ENCODED",
+    "camera_blur", "DEFAULT_BLUR_PX",
 ]

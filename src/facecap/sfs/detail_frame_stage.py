@@ -30,6 +30,7 @@ import scipy.sparse as sp
 
 from ..errors import InputError
 from ..typing import FloatArray
+from .camera_blur import DEFAULT_BLUR_PX, camera_blur
 from .sample_footage import sample_footage
 from .solve_heights import TEMPORAL_REACH, HeightWeights, ShadedFrame, shade_frame, solve_heights
 from .surface_low_pass import SurfaceLowPass
@@ -46,6 +47,7 @@ DETAIL_DEFAULTS: dict[str, Any] = {
     "gain_sigma_mm": 4.0,
     "marker_patch_mm": 5.0,
     "shadow_edge_rings": 2,
+    "blur_px": DEFAULT_BLUR_PX,
 }
 """The stage's options and their defaults (``detail.json`` records the values used)."""
 
@@ -67,7 +69,7 @@ class DetailFrameStage:
     region : (r,) int array
         The scan's vertices the detail is solved at.
     albedo : (r,) float array
-    k_s, alpha : float
+    k_s, alpha : float or (r,) float arrays
     transfer : {'linear', 'srgb'}
         How the footage encodes light.
     options : mapping, optional
@@ -75,7 +77,7 @@ class DetailFrameStage:
     """
 
     def __init__(self, result_dir: str, cameras: Sequence[Any], footage: Sequence[str], lights: Mapping[str, Any],
-                 mocap_frames: Any, region: Any, albedo: Any, k_s: float, alpha: float, transfer: str,
+                 mocap_frames: Any, region: Any, albedo: Any, k_s: Any, alpha: Any, transfer: str,
                  options: Mapping[str, Any] | None = None) -> None:
         self.result_dir = str(result_dir)
         self.cameras = list(cameras)
@@ -84,7 +86,9 @@ class DetailFrameStage:
         self.mocap_frames = np.asarray(mocap_frames, dtype=np.float64)
         self.region = np.asarray(region, dtype=np.int64)
         self.albedo = np.asarray(albedo, dtype=np.float64)
-        self.k_s, self.alpha = float(k_s), float(alpha)
+        # one lobe, or one per sample (per patch, blended)
+        self.k_s = np.broadcast_to(np.asarray(k_s, dtype=np.float64), self.region.shape).copy()
+        self.alpha = np.broadcast_to(np.asarray(alpha, dtype=np.float64), self.region.shape).copy()
         if transfer not in ("linear", "srgb"):
             raise InputError(f"transfer: expected 'linear' or 'srgb', got {transfer!r}")
         self.transfer = transfer
@@ -145,6 +149,16 @@ class DetailFrameStage:
             adjacency.data[:] = 1.0
             cached = self._region_faces = (faces, adjacency)
         return cached
+
+    def _area(self) -> np.ndarray:
+        """The region's Voronoi areas on the scan (mm^2): what each sample stands for in the camera's blur."""
+        area = getattr(self, "_areas", None)
+        if area is None:
+            from ..mesh.laplacian import laplace_operators
+
+            result = self._result()[0]
+            area = self._areas = laplace_operators(result.mesh.vertices, result.mesh.faces).mass[self.region]
+        return area
 
     def _low_pass(self) -> SurfaceLowPass:
         low = getattr(self, "_low", None)
@@ -228,8 +242,21 @@ class DetailFrameStage:
                 weight[:, np.isfinite(near)] = 0.0
         if gradient is None:
             gradient = vertex_gradient(X, F, rows=region, columns=region)
+        blur = None
+        if self.options["blur_px"] > 0:
+            blur = []
+            area = self._area()
+            for c in range(len(self.cameras)):
+                rows = np.flatnonzero(samples.weight[c] > 0)
+                inner = camera_blur(samples.pixels[c, rows], area[rows], self.options["blur_px"])
+                # unseen samples see themselves (their weight is 0 anyway)
+                embed = sp.csr_matrix((np.ones(rows.size), (rows, np.arange(rows.size))),
+                                      shape=(region.size, rows.size))
+                unseen = np.ones(region.size)
+                unseen[rows] = 0.0
+                blur.append((embed @ inner @ embed.T + sp.diags(unseen)).tocsr())
         frame = ShadedFrame(N, gradient, np.stack(to_light), np.stack(irradiance), samples.to_eye,
-                            samples.intensity, weight)
+                            samples.intensity, weight, blur)
         slow = np.ones(region.size)
         if gain:
             predicted, _, _ = shade_frame(frame, np.zeros(region.size), self.albedo, self.k_s, self.alpha,
@@ -250,7 +277,8 @@ class DetailFrameStage:
         return {"result_dir": self.result_dir, "cameras": [c.name for c in self.cameras], "footage": self.footage,
                 "lights": self.lights, "mocap_frames": self.mocap_frames.tolist(),
                 "region": [int(self.region.size), int(self.region.sum())],
-                "albedo": float(np.round(self.albedo.sum(), 6)), "k_s": self.k_s, "alpha": self.alpha,
+                "albedo": float(np.round(self.albedo.sum(), 6)), "k_s": float(np.round(self.k_s.sum(), 6)),
+                "alpha": float(np.round(self.alpha.sum(), 6)),
                 "transfer": self.transfer, "options": self.options}
 
     def __call__(self, start: int, stop: int, state: Any) -> tuple[dict[str, np.ndarray], None]:

@@ -44,12 +44,15 @@ class FootageSamples(NamedTuple):
         Unit directions from each sample toward each camera's centre.
     clipped : (C, r) bool array
         Seen, but clipped.
+    pixels : (C, r, 2) float64 array, px
+        Where each sample projects (NaN where the camera does not see it).
     """
 
     intensity: FloatArray
     weight: FloatArray
     to_eye: FloatArray
     clipped: np.ndarray
+    pixels: FloatArray
 
 
 def _luminance(image: np.ndarray) -> np.ndarray:
@@ -93,6 +96,7 @@ def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points:
     weight = np.zeros((C, r))
     clipped = np.zeros((C, r), dtype=bool)
     to_eye = np.empty((C, r, 3))
+    where = np.full((C, r, 2), np.nan)
     for c, (image, camera) in enumerate(zip(images, cameras)):
         image = np.asarray(image)
         if image.shape[:2] != (camera.height, camera.width):
@@ -120,6 +124,7 @@ def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points:
         near_hot = cv2.remap(hot, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
                              borderValue=0).ravel()[:k]
         rows = np.flatnonzero(seen)
+        where[c, rows] = pixels
         intensity[c, rows] = value
         cos = np.sum(N[rows] * to_eye[c, rows], axis=1)
         lo, hi = GRAZING_COS
@@ -128,4 +133,4 @@ def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points:
         is_hot = near_hot > 0
         clipped[c, rows] = is_hot
         weight[c, rows] = np.where(is_hot, 0.0, w)
-    return FootageSamples(intensity, weight, to_eye, clipped)
+    return FootageSamples(intensity, weight, to_eye, clipped, where)

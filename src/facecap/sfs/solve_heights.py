@@ -64,6 +64,9 @@ class ShadedFrame(NamedTuple):
         What each camera saw at the sample (linear), divided by any gain taken out first.
     weight : (C, r) float array
         Confidence of each observation: 0 where the camera does not see the sample.
+    blur : sequence (per camera) of (r, r) sparse matrices, or None
+        The camera's point spread on the skin (:func:`~facecap.sfs.camera_blur`): a sample sees the change of
+        shading the detail makes blurred by it; None: each sample sees its own.
     """
 
     normals: FloatArray
@@ -73,6 +76,7 @@ class ShadedFrame(NamedTuple):
     to_eye: FloatArray
     intensity: FloatArray
     weight: FloatArray
+    blur: Any = None
 
 
 class HeightWeights(NamedTuple):
@@ -185,7 +189,7 @@ def _temporal_operator(T: int, reach: int) -> FloatArray:
 
 def solve_heights(frames: Sequence[ShadedFrame], *, albedo: Any, k_s: Any = 0.0, alpha: Any = 10.0,
                   ambient: float = 0.0, weights: HeightWeights = HeightWeights(), iterations: int = 3,
-                  initial: FloatArray | None = None, tolerance: float = 1e-4, max_cg: int = 300) -> HeightSolve:
+                  initial: FloatArray | None = None, tolerance: float = 1e-3, max_cg: int = 100) -> HeightSolve:
     """Heights along the base normals that make the shading match the footage over a window of frames.
 
     Parameters
@@ -202,9 +206,9 @@ def solve_heights(frames: Sequence[ShadedFrame], *, albedo: Any, k_s: Any = 0.0,
         Gauss-Newton steps.
     initial : (T, r) float array, optional
         Heights to start from (default 0: the base surface).
-    tolerance : float, default 1e-4
+    tolerance : float, default 1e-3
         Relative residual at which conjugate gradients stop.
-    max_cg : int, default 300
+    max_cg : int, default 100
 
     Returns
     -------
@@ -225,11 +229,19 @@ def solve_heights(frames: Sequence[ShadedFrame], *, albedo: Any, k_s: Any = 0.0,
         raise InputError(f"weights: expected values >= 0, got {weights}")
     T = len(frames)
     h = np.zeros((T, r)) if initial is None else np.array(initial, dtype=np.float64, copy=True).reshape(T, r)
-    scale = []
+    scale, bases = [], []
     for f in frames:  # the base's own shading: residuals are relative to what the sample looks like
         base, _, _ = shade_frame(f, np.zeros(r), albedo, k_s, alpha, ambient)
         floor = 0.05 * max(float(np.median(base[f.weight > 0])) if np.any(f.weight > 0) else 1.0, 1e-12)
         scale.append(np.maximum(base, floor))
+        bases.append(base)
+
+    def seen(t: int, syn: FloatArray) -> FloatArray:
+        """What the cameras see of shading ``syn`` at frame ``t``: the base plus the blurred change."""
+        f = frames[t]
+        if f.blur is None:
+            return syn
+        return np.stack([bases[t][c] + f.blur[c] @ (syn[c] - bases[t][c]) for c in range(syn.shape[0])])
     spatial = _one_ring_average(frames[0].gradient)
     StS = (spatial.T @ spatial).tocsr() * weights.spatial
     C = _temporal_operator(T, TEMPORAL_REACH)
@@ -239,9 +251,18 @@ def solve_heights(frames: Sequence[ShadedFrame], *, albedo: Any, k_s: Any = 0.0,
         out = np.empty(T)
         for t, f in enumerate(frames):
             syn, _, _ = shade_frame(f, h_now[t], albedo, k_s, alpha, ambient)
-            res = (syn - f.intensity) / scale[t]
+            res = (seen(t, syn) - f.intensity) / scale[t]
             out[t] = np.sqrt(np.sum(f.weight * res * res) / max(np.sum(f.weight), 1e-12))
         return out
+
+    def objective(h_now: FloatArray, anchor_now: FloatArray) -> float:
+        """The window's whole objective (with the anchor's weights of this step)."""
+        total = 0.0
+        for t, f in enumerate(frames):
+            syn, _, _ = shade_frame(f, h_now[t], albedo, k_s, alpha, ambient)
+            res = (seen(t, syn) - f.intensity) / scale[t]
+            total += float(np.sum(f.weight * res * res)) + float(h_now[t] @ (StS @ h_now[t]))
+        return total + float(np.sum(anchor_now * h_now * h_now)) + float(np.sum(h_now * (CtC @ h_now)))
 
     before = residual_rms(np.zeros((T, r)))
     total_cg = 0
@@ -254,30 +275,42 @@ def solve_heights(frames: Sequence[ShadedFrame], *, albedo: Any, k_s: Any = 0.0,
         for t, f in enumerate(frames):
             syn, b, _ = shade_frame(f, h[t], albedo, k_s, alpha, ambient, gradient=True)
             b = b / scale[t][..., None]
-            res = (f.intensity - syn) / scale[t]
-            # the data term's normal matrix per sample: B_p = sum_c w b b^T (3x3); J^T W r = G^T sum_c w r b
-            B = np.einsum("cr,cri,crj->rij", f.weight, b, b)
-            q = np.einsum("cr,cri->ri", f.weight * res, b)
+            res = (f.intensity - seen(t, syn)) / scale[t]
             G = f.gradient
-            # J h_old is folded in so that the unknown is the new heights: J h_new ~ r + J h_old
             g_old = G.apply(h[t])
-            q = q + np.einsum("rij,rj->ri", B, g_old)
+            # the unknown is the new heights: J h_new ~ r + J h_old. Per sample the unblurred data term's normal
+            # matrix is B_p = sum_c w b b^T (3x3), and J^T W r = G^T sum_c w r b; the blurred one goes through
+            # each camera's blur and back (B then serves the preconditioner only)
+            B = np.einsum("cr,cri,crj->rij", f.weight, b, b)
+            if f.blur is None:
+                q = np.einsum("cr,cri->ri", f.weight * res, b) + np.einsum("rij,rj->ri", B, g_old)
+            else:
+                q = np.zeros((r, 3))
+                for c in range(b.shape[0]):
+                    target = res[c] + f.blur[c] @ np.sum(b[c] * g_old, axis=1)
+                    q += (f.blur[c].T @ (f.weight[c] * target))[:, None] * b[c]
             rhs[t] = G.x.T @ q[:, 0] + G.y.T @ q[:, 1] + G.z.T @ q[:, 2]
-            blocks.append((G, B))
+            blocks.append((G, B, b, f))
 
         def matvec(x: FloatArray) -> FloatArray:
             X = x.reshape(T, r)
             out = np.empty_like(X)
-            for t, (G, B) in enumerate(blocks):
+            for t, (G, B, b, f) in enumerate(blocks):
                 g = G.apply(X[t])
-                q = np.einsum("rij,rj->ri", B, g)
+                if f.blur is None:
+                    q = np.einsum("rij,rj->ri", B, g)
+                else:
+                    q = np.zeros((r, 3))
+                    for c in range(b.shape[0]):
+                        u = f.blur[c] @ np.sum(b[c] * g, axis=1)
+                        q += (f.blur[c].T @ (f.weight[c] * u))[:, None] * b[c]
                 out[t] = G.x.T @ q[:, 0] + G.y.T @ q[:, 1] + G.z.T @ q[:, 2] + StS @ X[t]
             out += anchor * X + CtC @ X
             return out.ravel()
 
         diagonal = np.empty((T, r))
         sts_diag = StS.diagonal()
-        for t, (G, B) in enumerate(blocks):
+        for t, (G, B, _, _) in enumerate(blocks):
             parts = (G.x, G.y, G.z)
             d = np.zeros(r)
             for i in range(3):
@@ -294,5 +327,15 @@ def solve_heights(frames: Sequence[ShadedFrame], *, albedo: Any, k_s: Any = 0.0,
 
         x, _ = spla.cg(A, rhs.ravel(), x0=h.ravel(), rtol=tolerance, maxiter=max_cg, M=M, callback=counter)
         total_cg += count[0]
-        h = x.reshape(T, r)
+        # the shading is far from linear (a specular lobe, the cosine's kink): the Gauss-Newton step is
+        # halved until the true objective falls, as a backtracking line search does
+        step = x.reshape(T, r) - h
+        start = objective(h, anchor)
+        for fraction in (1.0, 0.5, 0.25, 0.125):
+            trial = h + fraction * step
+            if objective(trial, anchor) < start:
+                h = trial
+                break
+        else:
+            break
     return HeightSolve(h, residual_rms(h), before, total_cg)

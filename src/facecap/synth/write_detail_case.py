@@ -150,6 +150,8 @@ def write_detail_case(
         Ambient-occlusion rays per vertex (the ambient term is small: 16 rays' 0.034 RMS error in ``A``
         is under 0.002 of radiance).
     bits : {8, 16}, default 8
+        8-bit PNGs are sRGB-encoded and 16-bit PNGs linear, as cameras write them (``footage.json``'s
+        ``response`` says which); ``facecap detail --transfer auto`` reads them so.
     markers_drawn : bool, default True
         Draw the markers (white discs of :data:`MARKER_RADIUS_MM` at the noiseless marker positions).
     cameras : sequence of Camera, optional
@@ -177,6 +179,11 @@ def write_detail_case(
     from ..cameras import RayCaster, write_image_sequence, write_light_file
 
     _check("bits", bits, bits in (8, 16), "8 or 16")
+    from ..cameras import linear_to_srgb
+
+    def encode(image: FloatArray) -> FloatArray:
+        return linear_to_srgb(image) if bits == 8 else image
+
     _check("appearance", appearance, appearance in APPEARANCES, f"one of {list(APPEARANCES)}")
     _check("video_every", video_every, isinstance(video_every, (int, np.integer)) and not isinstance(video_every, bool)
            and video_every >= 1, "an integer >= 1")
@@ -273,7 +280,8 @@ def write_detail_case(
                     at = cam.project(centres)
                     radius = cam.K[0, 0] * MARKER_RADIUS_MM / np.maximum(at.depth, 1e-9)
                     images[c] = draw_markers(images[c], at.pixels[seen], radius[seen], colour[seen])
-            coded = [quantize(sensor_noise(img, rng=noise_rng), bits=bits) for img in images]
+            # as a camera writes them: 8-bit files sRGB-encoded, 16-bit files linear
+            coded = [quantize(encode(sensor_noise(img, rng=noise_rng)), bits=bits) for img in images]
             for kept, image in zip(others, coded[1:]):
                 kept.append(image)
             if bar is not None:
@@ -296,7 +304,7 @@ def write_detail_case(
     footage_path = out / "footage.json"
     atomic_write_text(footage_path, json.dumps({
         "video_rate_hz": video_rate, "mocap_rate_hz": MOCAP_RATE_HZ, "first_mocap_frame": int(first_mocap_frame),
-        "video_every": int(video_every), "video_frames": int(video_frames.size), "bits": bits, "response": "linear",
+        "video_every": int(video_every), "video_frames": int(video_frames.size), "bits": bits, "response": "srgb" if bits == 8 else "linear",
         "sensor": SENSOR_DEFAULTS, "ao_rays": int(ao_rays), "appearance": appearance,
         "detail_edge_mm": detail_edge_mm, "scan_vertices": int(mesh.n_vertices),
         "lighting": "lights.json: radiance = k_d albedo (ambient A + sum_l lit E max(0, n.l)) + specular"
