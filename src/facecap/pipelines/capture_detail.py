@@ -171,8 +171,10 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
             raise InputError(f"regions: expected {result.n_vertices} flags, got shape {mask.shape}")
     t = time.perf_counter()
     everywhere = np.arange(result.n_vertices)
+    # the survey needs no camera blur (it models the detail's change, and there is none yet)
     survey = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup.describe(), mocap_frames,
-                              everywhere, np.ones(everywhere.size), 0.0, 1.0, encoding, options)
+                              everywhere, np.ones(everywhere.size), 0.0, 1.0, encoding,
+                              {**dict(options or {}), "blur_px": 0.0})
     rest, found = survey.observe(0, gain=False)
     direct = np.sum(rest.irradiance * np.maximum(np.einsum("rk,lrk->lr", rest.normals, rest.to_light), 0), axis=0)
     region_mask = select_detail_region(rest.weight, direct, result.mesh.faces, mask=mask)
@@ -194,7 +196,8 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
 
     # a lobe per patch of about REFLECTANCE_PATCH_MM, blended across the patches' edges
     stage_for_mesh = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup.describe(), mocap_frames,
-                                      region, np.ones(region.size), 0.0, 1.0, encoding, options)
+                                      region, np.ones(region.size), 0.0, 1.0, encoding,
+                                      {**dict(options or {}), "blur_px": 0.0})
     rest_positions = result.mesh.vertices[region]
     patches = np.unique(np.floor(rest_positions / REFLECTANCE_PATCH_MM).astype(np.int64), axis=0,
                         return_inverse=True)[1].ravel()

@@ -18,7 +18,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import InputError
-from ..typing import FloatArray
 
 __all__ = ["camera_blur", "DEFAULT_BLUR_PX"]
 
