@@ -38,7 +38,7 @@ def test_the_temporal_term_steadies_a_held_expression():
     truth = np.tile(held, (7, 1))
     frames = lined_frames(V, F, truth, albedo=0.6, noise=0.03, seed=4)
     still = solve_heights(frames, albedo=0.6, k_s=0.05, alpha=12.0, ambient=0.05,
-                          weights=HeightWeights(temporal=4.0))
+                          weights=HeightWeights(temporal=10.0))
     alone = solve_heights(frames, albedo=0.6, k_s=0.05, alpha=12.0, ambient=0.05,
                           weights=HeightWeights(temporal=0.0))
     change = lambda h: np.sqrt(np.mean(np.diff(h, axis=0) ** 2))  # noqa: E731

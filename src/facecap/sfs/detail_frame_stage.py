@@ -43,6 +43,7 @@ DETAIL_DEFAULTS: dict[str, Any] = {
     "temporal": HeightWeights().temporal,
     "anchor": HeightWeights().anchor,
     "sparsity_mm": HeightWeights().sparsity_mm,
+    "bulge": HeightWeights().bulge,
     "iterations": 3,
     "gain_sigma_mm": 4.0,
     "marker_patch_mm": 5.0,
@@ -289,7 +290,7 @@ class DetailFrameStage:
         gradient = vertex_gradient(X, self._result()[0].mesh.faces, rows=self.region, columns=self.region)
         frames = [self.observe(j, gradient=gradient)[0] for j in range(first, last)]
         o = self.options
-        weights = HeightWeights(o["spatial"], o["temporal"], o["anchor"], o["sparsity_mm"])
+        weights = HeightWeights(o["spatial"], o["temporal"], o["anchor"], o["sparsity_mm"], o["bulge"])
         solve = solve_heights(frames, albedo=self.albedo, k_s=self.k_s, alpha=self.alpha,
                               ambient=self.light_setup().ambient, weights=weights, iterations=o["iterations"])
         keep = slice(start - first, stop - first)
