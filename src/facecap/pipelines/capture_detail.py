@@ -172,7 +172,7 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
     t = time.perf_counter()
     everywhere = np.arange(result.n_vertices)
     # the survey needs no camera blur (it models the detail's change, and there is none yet)
-    survey = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup.describe(), mocap_frames,
+    survey = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup, mocap_frames,
                               everywhere, np.ones(everywhere.size), 0.0, 1.0, encoding,
                               {**dict(options or {}), "blur_px": 0.0})
     rest, found = survey.observe(0, gain=False)
@@ -195,13 +195,13 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                               intensity=frame.intensity[:, region], weight=frame.weight[:, region])
 
     # a lobe per patch of about REFLECTANCE_PATCH_MM, blended across the patches' edges
-    stage_for_mesh = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup.describe(), mocap_frames,
+    stage_for_mesh = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup, mocap_frames,
                                       region, np.ones(region.size), 0.0, 1.0, encoding,
                                       {**dict(options or {}), "blur_px": 0.0})
     rest_positions = result.mesh.vertices[region]
     patches = np.unique(np.floor(rest_positions / REFLECTANCE_PATCH_MM).astype(np.int64), axis=0,
                         return_inverse=True)[1].ravel()
-    region_faces, _ = stage_for_mesh._region_mesh()
+    region_faces, _ = stage_for_mesh.region_mesh()
     blend = SurfaceLowPass(rest_positions, region_faces, REFLECTANCE_PATCH_MM / 2)
     reflectance = estimate_reflectance([restricted(rest)], ambient=setup.ambient, per_sample=per_sample_albedo,
                                        specular=specular, patches=patches if per_sample_albedo else None,
@@ -221,7 +221,7 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                                        k_s=np.broadcast_to(reflectance.k_s, trusted.shape)[trusted],
                                        alpha=np.broadcast_to(reflectance.alpha, trusted.shape)[trusted])
     timings["region_and_reflectance_s"] = time.perf_counter() - t
-    stage = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup.describe(), mocap_frames, region,
+    stage = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup, mocap_frames, region,
                              reflectance.albedo, reflectance.k_s, reflectance.alpha, encoding, options)
     t = time.perf_counter()
     own_work = work_dir is None

@@ -63,8 +63,8 @@ class DetailFrameStage:
     cameras : sequence of Camera
     footage : sequence of str
         One footage per camera.
-    lights : mapping
-        ``LightSetup.describe()`` (lights.json as a dict, mm).
+    lights : LightSetup
+        The stage's lights (``lights.json``).
     mocap_frames : (V,) float array
         The mocap frame of each video frame.
     region : (r,) int array
@@ -77,13 +77,13 @@ class DetailFrameStage:
         :data:`DETAIL_DEFAULTS`' keys.
     """
 
-    def __init__(self, result_dir: str, cameras: Sequence[Any], footage: Sequence[str], lights: Mapping[str, Any],
+    def __init__(self, result_dir: str, cameras: Sequence[Any], footage: Sequence[str], lights: Any,
                  mocap_frames: Any, region: Any, albedo: Any, k_s: Any, alpha: Any, transfer: str,
                  options: Mapping[str, Any] | None = None) -> None:
         self.result_dir = str(result_dir)
         self.cameras = list(cameras)
         self.footage = [str(p) for p in footage]
-        self.lights = dict(lights)
+        self.lights = lights
         self.mocap_frames = np.asarray(mocap_frames, dtype=np.float64)
         self.region = np.asarray(region, dtype=np.int64)
         self.albedo = np.asarray(albedo, dtype=np.float64)
@@ -112,17 +112,6 @@ class DetailFrameStage:
             opened = self._opened = (read_result(self.result_dir), correspondence)
         return opened
 
-    def light_setup(self) -> Any:
-        from ..cameras import Light, LightSetup
-
-        setup = getattr(self, "_light_setup", None)
-        if setup is None:
-            lights = tuple(Light(e["type"], e.get("intensity", 1.0), e.get("position"), e.get("direction"),
-                                 e.get("cone_deg"), e.get("penumbra_deg", 5.0), e.get("name", ""))
-                           for e in self.lights["lights"])
-            setup = self._light_setup = LightSetup(lights, self.lights.get("ambient", 0.0))
-        return setup
-
     def image(self, camera_index: int, video_frame: int) -> np.ndarray:
         """A footage frame as linear light in [0, 1] (float32)."""
         from ..cameras import image_to_float, open_footage, srgb_to_linear
@@ -133,7 +122,7 @@ class DetailFrameStage:
         image = image_to_float(clips[camera_index].frame(video_frame))
         return srgb_to_linear(np.clip(image, 0.0, 1.0)) if self.transfer == "srgb" else image
 
-    def _region_mesh(self) -> tuple[np.ndarray, sp.csr_matrix]:
+    def region_mesh(self) -> tuple[np.ndarray, sp.csr_matrix]:
         """The triangles inside the region (reindexed) and the region's one-ring adjacency."""
         cached = getattr(self, "_region_faces", None)
         if cached is None:
@@ -165,22 +154,16 @@ class DetailFrameStage:
         low = getattr(self, "_low", None)
         if low is None:
             result = self._result()[0]
-            faces, _ = self._region_mesh()
+            faces, _ = self.region_mesh()
             low = self._low = SurfaceLowPass(result.mesh.vertices[self.region], faces, self.options["gain_sigma_mm"])
         return low
 
     # -- one frame ---------------------------------------------------------------------------------------
     def large_scale(self, video_frame: int) -> FloatArray:
         """The layer below (face frame, mm) at a video frame's mocap time (linear between mocap frames)."""
-        from ..units import mm_per_unit
+        from ..wrinkles.wrinkle_frame_stage import result_frame_at
 
-        result = self._result()[0]
-        position = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
-        lo = int(np.floor(position))
-        hi = min(lo + 1, result.n_frames - 1)
-        block = result.frames(lo, hi + 1).astype(np.float64) * float(mm_per_unit(result.units))
-        weight = position - lo
-        return block[0] if hi == lo or weight == 0 else (1 - weight) * block[0] + weight * block[-1]
+        return result_frame_at(self._result()[0], float(self.mocap_frames[video_frame]))
 
     def mocap_vertices(self, video_frame: int) -> tuple[FloatArray, FloatArray]:
         """The layer below at a video frame: in the face's frame and carried into the mocap frame (mm)."""
@@ -214,7 +197,7 @@ class DetailFrameStage:
         images = [self.image(c, video_frame) for c in range(len(self.cameras))]
         samples = sample_footage(images, self.cameras, P, N, visible)
         weight = samples.weight.copy()
-        setup = self.light_setup()
+        setup = self.lights
         to_light, irradiance, lit_all = [], [], []
         for light in setup.lights:
             direction, E = light.arriving(P)
@@ -222,7 +205,7 @@ class DetailFrameStage:
             to_light.append(direction)
             irradiance.append(E * lit)
             lit_all.append(lit)
-        _, adjacency = self._region_mesh()
+        _, adjacency = self.region_mesh()
         edge = np.zeros(region.size, dtype=bool)
         for lit in lit_all:  # samples whose one-ring holds both lit and shadowed samples, grown by rings
             lit_f = lit.astype(np.float64)
@@ -276,7 +259,7 @@ class DetailFrameStage:
     def parameters(self) -> dict[str, Any]:
         """What the frames depend on (the runner refuses to resume a run with other values)."""
         return {"result_dir": self.result_dir, "cameras": [c.name for c in self.cameras], "footage": self.footage,
-                "lights": self.lights, "mocap_frames": self.mocap_frames.tolist(),
+                "lights": self.lights.describe(), "mocap_frames": self.mocap_frames.tolist(),
                 "region": [int(self.region.size), int(self.region.sum())],
                 "albedo": float(np.round(self.albedo.sum(), 6)), "k_s": float(np.round(self.k_s.sum(), 6)),
                 "alpha": float(np.round(self.alpha.sum(), 6)),
@@ -292,7 +275,7 @@ class DetailFrameStage:
         o = self.options
         weights = HeightWeights(o["spatial"], o["temporal"], o["anchor"], o["sparsity_mm"], o["bulge"])
         solve = solve_heights(frames, albedo=self.albedo, k_s=self.k_s, alpha=self.alpha,
-                              ambient=self.light_setup().ambient, weights=weights, iterations=o["iterations"])
+                              ambient=self.lights.ambient, weights=weights, iterations=o["iterations"])
         keep = slice(start - first, stop - first)
         return {"heights": solve.heights[keep].astype(np.float32),
                 "residual": solve.residual[keep].astype(np.float32),

@@ -22,7 +22,7 @@
 - :func:`synthesize_wrinkles`, :class:`WrinkleSynthesis`, :func:`smoothed_normals`,
   :func:`wrinkle_depth_scale` (``synthesize_wrinkles.py``): valleys imposed and bulges by the
   shell, region by region (5.3); the depth factor its ``depth_scale`` gives each wrinkle.
-- :class:`WrinkleFrameStage`, :func:`large_scale_in_mocap`, :func:`first_frame_anchors`,
+- :class:`WrinkleFrameStage`, :func:`large_scale_in_mocap`, :func:`result_frame_at`, :func:`first_frame_anchors`,
   :func:`check_cameras_see_the_face`, :func:`check_paint_on_face` (``wrinkle_frame_stage.py``): one video
   frame of the layer, and the checks before a run; the whole take (``facecap wrinkles``) is
   :func:`facecap.pipelines.capture_wrinkles`, on the frame runner.
@@ -80,6 +80,7 @@ from .wrinkle_frame_stage import (
     check_paint_on_face,
     first_frame_anchors,
     large_scale_in_mocap,
+    result_frame_at,
 )
 from .wrinkle_edits import DepthEdit, DrawnWrinkle, WrinkleEdits, read_wrinkle_edits, svg_path_points
 
@@ -123,6 +124,7 @@ __all__ = [
     "wrinkle_depth_scale",
     "WrinkleFrameStage",
     "large_scale_in_mocap",
+    "result_frame_at",
     "remove_wrinkles",
     "remove_wrinkles_arrays",
     "WrinkleRemoval",

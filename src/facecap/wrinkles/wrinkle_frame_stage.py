@@ -35,7 +35,7 @@ from ..mesh.resample_polyline import resample_polyline
 from ..rotations import nearest_rotation
 from ..typing import FloatArray
 
-__all__ = ["WrinkleFrameStage", "large_scale_in_mocap", "first_frame_anchors",
+__all__ = ["WrinkleFrameStage", "large_scale_in_mocap", "result_frame_at", "first_frame_anchors",
            "check_cameras_see_the_face", "check_paint_on_face"]
 
 CURVE_SAMPLES = 48
@@ -86,6 +86,20 @@ def large_scale_in_mocap(face_vertices: Any, correspondence: Mapping[str, np.nda
         R = nearest_rotation(M[:3, :3])  # the blend of two frames' rotations is none
         Y = Y @ R.T + M[:3, 3]
     return Y
+
+
+def result_frame_at(result: Any, position: float) -> FloatArray:
+    """A result's face (mm, float64) at a fractional mocap frame: linear between the two frames around it.
+
+    ``position`` is clipped to the take; the layers on top of a result (wrinkles, fine detail) read
+    their large scale at each video frame's mocap time this way.
+    """
+    position = float(np.clip(position, 0, result.n_frames - 1))
+    lo = int(np.floor(position))
+    hi = min(lo + 1, result.n_frames - 1)
+    block = result.frames(lo, hi + 1).astype(np.float64) * _mm_per(result.units)
+    weight = position - lo
+    return block[0] if hi == lo or weight == 0 else (1 - weight) * block[0] + weight * block[-1]
 
 
 class WrinkleFrameStage:
@@ -164,13 +178,7 @@ class WrinkleFrameStage:
 
     def large_scale(self, video_frame: int) -> FloatArray:
         """The large-scale face (mm) at a video frame's mocap time (linear between mocap frames)."""
-        result = self._result()[0]
-        position = float(np.clip(self.mocap_frames[video_frame], 0, result.n_frames - 1))
-        lo = int(np.floor(position))
-        hi = min(lo + 1, result.n_frames - 1)
-        block = result.frames(lo, hi + 1).astype(np.float64) * _mm_per(result.units)
-        weight = position - lo
-        return block[0] if hi == lo or weight == 0 else (1 - weight) * block[0] + weight * block[-1]
+        return result_frame_at(self._result()[0], float(self.mocap_frames[video_frame]))
 
     def geometry(self, video_frame: int) -> tuple[FloatArray, Any]:
         """The large scale at a video frame (face frame, mm) and its ray caster in the mocap frame."""
