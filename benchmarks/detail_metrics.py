@@ -21,7 +21,8 @@ import numpy as np
 THRESHOLD_MM = 0.03
 
 
-def detail_metrics(case: Path, base: Path, detail: Path, *, frames: np.ndarray | None = None) -> dict:
+def detail_metrics(case: Path, base: Path, detail, *, frames: np.ndarray | None = None) -> dict:
+    """The metrics of a detail result folder ``detail``, or of ``detail(t, A) -> D`` (mocap frame, layer below)."""
     from scipy.spatial import cKDTree
 
     from facecap.io.read_result import read_result
@@ -29,7 +30,8 @@ def detail_metrics(case: Path, base: Path, detail: Path, *, frames: np.ndarray |
 
     truth = np.load(case / "truth.npz")
     video = truth["video_mocap_frames"] if frames is None else frames
-    A_res, D_res = read_result(base), read_result(detail)
+    A_res = read_result(base)
+    D_res = read_result(detail) if isinstance(detail, (str, Path)) else None
     F = A_res.mesh.faces
     n = A_res.n_vertices
     sums = dict(v_err=0.0, v_size=0.0, s_err=0.0, s_size=0.0, flat=0.0, flat_n=0, marks=0.0, marks_n=0)
@@ -43,7 +45,7 @@ def detail_metrics(case: Path, base: Path, detail: Path, *, frames: np.ndarray |
     added_series = []
     for t in video:
         A = A_res.frames(int(t), int(t) + 1)[0].astype(np.float64)
-        D = D_res.frames(int(t), int(t) + 1)[0].astype(np.float64)
+        D = D_res.frames(int(t), int(t) + 1)[0].astype(np.float64) if D_res is not None else detail(int(t), A)
         G = truth["vertices"][t].astype(np.float64)
         L = truth["without_detail"][t].astype(np.float64)
         added = D - A

@@ -36,3 +36,12 @@ def test_dirichlet_energy_of_a_linear_function_on_a_flat_grid():
     ops = laplace_operators(V, F)
     f = 2 * V[:, 0] - 3 * V[:, 1]
     np.testing.assert_allclose(f @ (ops.L @ f), (4 + 9) * 50 * 30, rtol=1e-10)
+
+
+def test_vertices_after_the_last_triangle_get_zero_rows_and_no_area():
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [5, 5, 5], [6, 5, 5]])
+    F = np.array([[0, 1, 2]])
+    ops = laplace_operators(V, F)
+    assert ops.L.shape == (5, 5) and ops.mass.shape == (5,)
+    assert ops.mass[3:].tolist() == [0.0, 0.0] and abs(ops.mass.sum() - 0.5) < 1e-12
+    assert abs(ops.L[3:]).sum() == 0.0 and abs(ops.L[:, 3:]).sum() == 0.0

@@ -27,3 +27,19 @@ def test_a_line_one_sample_wide_loses_contrast_as_the_blur_widens():
     # at 1.98 px (none on it)
     e1, e2 = np.exp(-1.96 / 1.28), np.exp(-3.92 / 1.28)
     np.testing.assert_allclose(contrasts[2], (1 + 2 * e1) / (1 + 4 * e1 + 4 * e2), rtol=1e-9)
+
+
+def test_the_blur_in_the_region_numbering_keeps_unseen_samples_to_themselves():
+    import scipy.sparse as sp
+
+    from facecap.sfs.detail_frame_stage import _in_region
+
+    rng = np.random.default_rng(2)
+    size = 60
+    rows = np.sort(rng.choice(size, 41, replace=False))
+    inner = camera_blur(rng.uniform(0, 4, size=(41, 2)), rng.uniform(0.5, 1.5, 41), 0.7)
+    embed = sp.csr_matrix((np.ones(41), (rows, np.arange(41))), shape=(size, 41))
+    unseen = np.ones(size)
+    unseen[rows] = 0.0
+    expected = (embed @ inner @ embed.T + sp.diags(unseen)).toarray()
+    assert np.array_equal(_in_region(inner, rows, size).toarray(), expected)

@@ -21,3 +21,23 @@ def test_the_region_leaves_out_unseen_unlit_and_edge_vertices():
     np.testing.assert_array_equal(chosen, expected)
     mask = V[:, 0] > 15
     np.testing.assert_array_equal(select_detail_region(weight, direct, F, mask=mask), expected & mask)
+
+
+def test_the_locality_order_is_a_permutation_that_narrows_the_band():
+    from facecap.sfs.select_detail_region import locality_order
+
+    V, F = dome_patch(30, 30, step=1.0)
+    scatter = np.random.default_rng(0).permutation(V.shape[0])
+    F = np.argsort(scatter)[F]  # vertex k of the new numbering was vertex scatter[k]
+    region = np.flatnonzero(V[scatter][:, 0] < 20)
+    order = locality_order(region, F)
+    assert np.array_equal(np.sort(order), np.arange(region.size))
+
+    def bandwidth(numbering):
+        index = np.full(V.shape[0], -1)
+        index[numbering] = np.arange(numbering.size)
+        local = index[F[np.all(index[F] >= 0, axis=1)]]
+        return int(np.abs(local - np.roll(local, 1, axis=1)).max())
+
+    # a 20 x 30 grid: the band of a good order is about one row of the grid (30), scattered it is the region
+    assert bandwidth(region[order]) <= 45 < region.size / 2 < bandwidth(region)

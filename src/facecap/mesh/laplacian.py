@@ -72,5 +72,11 @@ def laplace_operators(V: FloatArray, F: IntArray) -> LaplaceOperators:
     V = as_vertices(V)
     F = as_faces(F, V.shape[0])
     L = -igl.cotmatrix(V, F)
-    mass = igl.massmatrix(V, F, igl.MASSMATRIX_TYPE_VORONOI).diagonal()
-    return LaplaceOperators(sp.csr_matrix(L), np.asarray(mass, dtype=np.float64))
+    mass = np.asarray(igl.massmatrix(V, F, igl.MASSMATRIX_TYPE_VORONOI).diagonal(), dtype=np.float64)
+    n = V.shape[0]
+    # libigl may size by the largest vertex a triangle uses: vertices after it, in no triangle, get nothing
+    if L.shape[0] < n:
+        L = sp.block_diag([L, sp.csr_matrix((n - L.shape[0], n - L.shape[0]))])
+    if mass.size < n:
+        mass = np.concatenate([mass, np.zeros(n - mass.size)])
+    return LaplaceOperators(sp.csr_matrix(L), mass)

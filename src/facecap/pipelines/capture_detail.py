@@ -130,7 +130,7 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
     from ..runner import run_frames
     from ..sfs.detail_frame_stage import DetailFrameStage
     from ..sfs.estimate_reflectance import REST_MISFIT_LIMIT, estimate_reflectance, rest_misfit
-    from ..sfs.select_detail_region import select_detail_region
+    from ..sfs.select_detail_region import locality_order, select_detail_region
     from ..sfs.surface_low_pass import SurfaceLowPass
     from ..units import mm_per_unit
     from .finish_result import finish_result
@@ -220,6 +220,11 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
     reflectance = reflectance._replace(albedo=reflectance.albedo[trusted],
                                        k_s=np.broadcast_to(reflectance.k_s, trusted.shape)[trusted],
                                        alpha=np.broadcast_to(reflectance.alpha, trusted.shape)[trusted])
+    # solved in an order that keeps mesh neighbours close in memory (detail_region.npy records it)
+    order = locality_order(region, result.mesh.faces)
+    region = region[order]
+    reflectance = reflectance._replace(albedo=reflectance.albedo[order], k_s=reflectance.k_s[order],
+                                       alpha=reflectance.alpha[order])
     timings["region_and_reflectance_s"] = time.perf_counter() - t
     stage = DetailFrameStage(str(result_dir.resolve()), cameras, footage, setup, mocap_frames, region,
                              reflectance.albedo, reflectance.k_s, reflectance.alpha, encoding, options)

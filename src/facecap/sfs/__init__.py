@@ -16,7 +16,8 @@ has the method step by step and the decisions.
 - :func:`sample_footage`, :class:`FootageSamples`, :data:`LUMINANCE`, :data:`CLIPPED_LEVEL`
   (``sample_footage.py``): footage onto the skin.
 - :func:`camera_blur`, :data:`DEFAULT_BLUR_PX` (``camera_blur.py``): the camera's point spread on the skin.
-- :func:`select_detail_region` (``select_detail_region.py``): the default region.
+- :func:`select_detail_region`, :func:`locality_order` (``select_detail_region.py``): the default region,
+  and the order its samples are solved in.
 - :class:`DetailFrameStage`, :data:`DETAIL_DEFAULTS` (``detail_frame_stage.py``): a window of video
   frames on the frame runner.
 - :class:`DetailMaps`, :data:`FLAT_NORMAL`, :data:`FLAT_ENCODED` (``detail_maps.py``): the detail's
@@ -31,7 +32,8 @@ from .detail_maps import FLAT_ENCODED, FLAT_NORMAL, DetailMaps
 from .estimate_reflectance import PHONG_EXPONENTS, REST_MISFIT_LIMIT, Reflectance, estimate_reflectance, rest_misfit
 from .phong_shading import PhongShading, phong_shading
 from .sample_footage import CLIPPED_LEVEL, LUMINANCE, FootageSamples, sample_footage
-from .select_detail_region import BOUNDARY_RINGS, MIN_LIGHT_SHARE, MIN_VIEW_WEIGHT, select_detail_region
+from .select_detail_region import (BOUNDARY_RINGS, MIN_LIGHT_SHARE, MIN_VIEW_WEIGHT, locality_order,
+                                   select_detail_region)
 from .solve_heights import TEMPORAL_REACH, HeightSolve, HeightWeights, ShadedFrame, shade_frame, solve_heights
 from .surface_low_pass import SurfaceLowPass
 from .vertex_gradient import VertexGradient, vertex_gradient
@@ -43,7 +45,7 @@ __all__ = [
     "estimate_reflectance", "rest_misfit", "Reflectance", "PHONG_EXPONENTS", "REST_MISFIT_LIMIT",
     "SurfaceLowPass",
     "sample_footage", "FootageSamples", "LUMINANCE", "CLIPPED_LEVEL",
-    "select_detail_region", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS",
+    "select_detail_region", "locality_order", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS",
     "DetailFrameStage", "DETAIL_DEFAULTS",
     "DetailMaps", "FLAT_NORMAL", "FLAT_ENCODED",
     "camera_blur", "DEFAULT_BLUR_PX",

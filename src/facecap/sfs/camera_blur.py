@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import numba
 import numpy as np
 import scipy.sparse as sp
 
@@ -57,10 +58,51 @@ def camera_blur(pixels: Any, area: Any, sigma_px: float = DEFAULT_BLUR_PX, *, re
     if sigma_px == 0 or k == 0:
         return sp.identity(k, format="csr")
     pairs = cKDTree(P).query_pairs(reach * sigma_px, output_type="ndarray")
-    i = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(k)])
-    j = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(k)])
-    d2 = np.sum((P[i] - P[j]) ** 2, axis=1)
-    weight = np.exp(-0.5 * d2 / sigma_px ** 2) * a[j]
-    B = sp.csr_matrix((weight, (i, j)), shape=(k, k))
-    total = np.asarray(B.sum(axis=1)).ravel()
-    return (sp.diags(1.0 / np.maximum(total, 1e-300)) @ B).tocsr()
+    first, second = pairs[:, 0], pairs[:, 1]
+    d2 = (P[first, 0] - P[second, 0]) ** 2 + (P[first, 1] - P[second, 1]) ** 2
+    indptr, indices, data = _row_stochastic(k, first, second, np.exp(-0.5 * d2 / sigma_px ** 2), a)
+    return sp.csr_matrix((data, indices, indptr), shape=(k, k))
+
+
+@numba.njit(nogil=True)
+def _row_stochastic(k, first, second, near, area):  # pragma: no cover - compiled
+    """CSR arrays of ``W_ij = near_ij area_j / sum_j(...)`` over each pair both ways and every sample itself.
+
+    A counting sort straight into CSR (scipy's COO conversion sorts and sums duplicates: 0.36 s of a 0.45 s
+    blur at 140 880 samples).
+    """
+    count = np.ones(k, dtype=np.int64)
+    for p in range(first.size):
+        count[first[p]] += 1
+        count[second[p]] += 1
+    indptr = np.zeros(k + 1, dtype=np.int64)
+    indptr[1:] = np.cumsum(count)
+    fill = indptr[:-1].copy()
+    indices = np.empty(indptr[k], dtype=np.int32)
+    data = np.empty(indptr[k])
+    for i in range(k):
+        indices[fill[i]] = i
+        data[fill[i]] = area[i]
+        fill[i] += 1
+    for p in range(first.size):
+        i, j = first[p], second[p]
+        indices[fill[i]] = j
+        data[fill[i]] = near[p] * area[j]
+        fill[i] += 1
+        indices[fill[j]] = i
+        data[fill[j]] = near[p] * area[i]
+        fill[j] += 1
+    for i in range(k):
+        total = 0.0
+        for q in range(indptr[i], indptr[i + 1]):
+            total += data[q]
+        if total > 0:
+            for q in range(indptr[i], indptr[i + 1]):
+                data[q] /= total
+    return indptr, indices, data
+
+
+try:  # compiled once per machine and kept; where no cache folder is writable, compiled per process
+    _row_stochastic.enable_caching()
+except RuntimeError:
+    pass

@@ -233,12 +233,7 @@ class DetailFrameStage:
             for c in range(len(self.cameras)):
                 rows = np.flatnonzero(samples.weight[c] > 0)
                 inner = camera_blur(samples.pixels[c, rows], area[rows], self.options["blur_px"])
-                # unseen samples see themselves (their weight is 0 anyway)
-                embed = sp.csr_matrix((np.ones(rows.size), (rows, np.arange(rows.size))),
-                                      shape=(region.size, rows.size))
-                unseen = np.ones(region.size)
-                unseen[rows] = 0.0
-                blur.append((embed @ inner @ embed.T + sp.diags(unseen)).tocsr())
+                blur.append(_in_region(inner, rows, region.size))
         frame = ShadedFrame(N, gradient, np.stack(to_light), np.stack(irradiance), samples.to_eye,
                             samples.intensity, weight, blur)
         slow = np.ones(region.size)
@@ -280,3 +275,21 @@ class DetailFrameStage:
         return {"heights": solve.heights[keep].astype(np.float32),
                 "residual": solve.residual[keep].astype(np.float32),
                 "residual_before": solve.residual_before[keep].astype(np.float32)}, None
+
+
+def _in_region(inner: sp.csr_matrix, rows: np.ndarray, size: int) -> sp.csr_matrix:
+    """A matrix over the ``rows`` of a region, in the region's numbering; the other samples see themselves.
+
+    Written straight into CSR (``rows`` ascending): a COO conversion sorts 5 million entries a camera.
+    """
+    counts = np.ones(size, dtype=np.int64)
+    counts[rows] = np.diff(inner.indptr)
+    indptr = np.zeros(size + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    data = np.ones(indptr[-1])
+    indices = np.arange(size, dtype=np.int64)[np.repeat(np.arange(size), counts)]
+    row_of_entry = np.repeat(np.arange(rows.size), np.diff(inner.indptr))
+    at = indptr[rows][row_of_entry] + (np.arange(inner.nnz) - inner.indptr[row_of_entry])
+    data[at] = inner.data
+    indices[at] = rows[inner.indices]
+    return sp.csr_matrix((data, indices, indptr), shape=(size, size))

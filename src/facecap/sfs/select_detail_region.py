@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from ..typing import BoolArray
 
-__all__ = ["select_detail_region", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS"]
+__all__ = ["select_detail_region", "locality_order", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS"]
 
 MIN_VIEW_WEIGHT = 0.5
 """The least observation weight (:func:`~facecap.sfs.sample_footage`) every camera must give a sample
@@ -68,3 +68,42 @@ def select_detail_region(weight: Any, direct: Any, faces: Any, *, mask: Any = No
     if mask is not None:
         chosen &= np.asarray(mask, dtype=bool)
     return chosen
+
+
+def locality_order(region: Any, faces: Any) -> np.ndarray:
+    """An order of the region's vertices in which mesh neighbours lie close in memory (reverse Cuthill-McKee).
+
+    A scan refined where the lines are numbers its new vertices last, so the one-ring of a sample is spread
+    over the whole array and every sparse pass of the solve waits on memory; in this order the blur's pass
+    over a 140 880-sample region took 3.3 ms instead of 6.1 (``benchmarks/RESULTS.md``).
+
+    Parameters
+    ----------
+    region : (r,) int array
+        Vertex indices.
+    faces : (m, 3) int array
+        The mesh's triangles (all of them; those leaving the region are ignored).
+
+    Returns
+    -------
+    (r,) int array
+        A permutation of ``range(r)``: ``region[order]`` is the region in the new order.
+
+    Examples
+    --------
+    >>> order = locality_order(np.arange(4), np.array([[0, 2, 3], [0, 3, 1]]))
+    >>> sorted(order.tolist())
+    [0, 1, 2, 3]
+    """
+    from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+    region = np.asarray(region, dtype=np.int64)
+    F = np.asarray(faces, dtype=np.int64)
+    index = np.full(max(int(F.max(initial=-1)), int(region.max(initial=-1))) + 1, -1, dtype=np.int64)
+    index[region] = np.arange(region.size)
+    inside = F[np.all(index[F] >= 0, axis=1)]
+    local = index[inside]
+    i = local.ravel()
+    j = np.roll(local, 1, axis=1).ravel()
+    adjacency = sp.csr_matrix((np.ones(2 * i.size), (np.r_[i, j], np.r_[j, i])), shape=(region.size, region.size))
+    return np.asarray(reverse_cuthill_mckee(adjacency, symmetric_mode=True), dtype=np.int64)
