@@ -67,7 +67,7 @@ def _transfer_of(image: np.ndarray, transfer: str, where: str) -> str:
 def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], footage: Sequence[Any], lights: Any,
                    out_dir: str | os.PathLike[str], *, video_rate_hz: float | None = None,
                    first_mocap_frame: float = 0.0, regions: Any = None, transfer: str = "auto",
-                   per_sample_albedo: bool = True, specular: bool = True,
+                   per_sample_albedo: bool = True, specular: bool = True, rest_misfit_limit: float | None = None,
                    scheduler: str | None = "synchronous", n_workers: int = 2,
                    work_dir: Any = None, exports: Sequence[str] = (), chunk_frames: int = CHUNK_VIDEO_FRAMES,
                    progress: bool = False, options: Mapping[str, Any] | None = None,
@@ -99,7 +99,11 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
         region as the paper does.
     specular : bool, default True
         Fit and shade Phong's specular lobe; False: Lambertian (the single-frame baseline of the paper's Fig. 9,
-        with ``options={'temporal': 0}`` and ``per_sample_albedo=False``).
+        with ``options={'temporal': 0}``, ``per_sample_albedo=False`` and ``rest_misfit_limit=inf``).
+    rest_misfit_limit : float, optional
+        Samples whose rest frame the fitted reflectance explains worse than this (relative RMS) are left out;
+        default :data:`~facecap.sfs.REST_MISFIT_LIMIT`. A Lambertian fit misses every highlight, so the baseline
+        keeps everything (``inf``).
     scheduler, n_workers, work_dir, chunk_frames, progress
         The frame runner's (:func:`~facecap.runner.run_frames`).
     exports : sequence of str, default ()
@@ -207,7 +211,8 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                                        specular=specular, patches=patches if per_sample_albedo else None,
                                        smooth=lambda values: blend(values))
     misfit = rest_misfit([restricted(rest)], reflectance, ambient=setup.ambient)
-    trusted = np.isfinite(misfit) & (misfit <= REST_MISFIT_LIMIT)
+    limit = REST_MISFIT_LIMIT if rest_misfit_limit is None else float(rest_misfit_limit)
+    trusted = np.isfinite(misfit) & (misfit <= limit)
     if not trusted.any():
         raise InputError("the rest frame's shading cannot be explained anywhere in the region (check the lights "
                          "file, the cameras and --transfer)")
@@ -271,7 +276,7 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                                 "albedo_median": float(np.median(reflectance.albedo)),
                                 "rest_residual": reflectance.residual},
                 "transfer": encoding, "region_vertices": int(region.size), "clipped_share": clipped,
-                "left_out_by_rest_misfit": left_out, "rest_misfit_limit": REST_MISFIT_LIMIT,
+                "left_out_by_rest_misfit": left_out, "rest_misfit_limit": limit,
                 "options": stage.options,
                 "frames": [{"video_frame": j, "mocap_frame": float(mocap_frames[j]),
                             "residual": float(residual[j]), "residual_base": float(residual_before[j]),

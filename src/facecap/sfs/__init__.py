@@ -9,12 +9,16 @@ has the method step by step and the decisions.
 - :func:`vertex_gradient`, :class:`VertexGradient` (``vertex_gradient.py``): heights to normals.
 - :func:`solve_heights`, :func:`shade_frame`, :class:`ShadedFrame`, :class:`HeightWeights`,
   :class:`HeightSolve`, :data:`TEMPORAL_REACH` (``solve_heights.py``): the space-time solve (eqs. 6-8).
+- :class:`FrameNormalProduct`, :class:`OneRingPattern`, :func:`stack_blur` (``normal_product.py``): the
+  solve's normal-equations product, compiled.
 - :func:`estimate_reflectance`, :func:`rest_misfit`, :class:`Reflectance`, :data:`PHONG_EXPONENTS`,
   :data:`REST_MISFIT_LIMIT` (``estimate_reflectance.py``): albedo and Phong lobe from the rest frame, and
   the samples it cannot explain.
 - :class:`SurfaceLowPass` (``surface_low_pass.py``): the slow gain's filter.
-- :func:`sample_footage`, :class:`FootageSamples`, :data:`LUMINANCE`, :data:`CLIPPED_LEVEL`
+- :func:`sample_footage`, :func:`luminance`, :class:`FootageSamples`, :data:`LUMINANCE`, :data:`CLIPPED_LEVEL`
   (``sample_footage.py``): footage onto the skin.
+- :func:`follow_skin`, :data:`FLOW_LIMIT_PX` (``follow_skin.py``): optical flow against the rest frame, so
+  that a sample reads the same skin point in every frame.
 - :func:`camera_blur`, :data:`DEFAULT_BLUR_PX` (``camera_blur.py``): the camera's point spread on the skin.
 - :func:`select_detail_region`, :func:`locality_order` (``select_detail_region.py``): the default region,
   and the order its samples are solved in.
@@ -30,8 +34,10 @@ from .camera_blur import DEFAULT_BLUR_PX, camera_blur
 from .detail_frame_stage import DETAIL_DEFAULTS, DetailFrameStage
 from .detail_maps import FLAT_ENCODED, FLAT_NORMAL, DetailMaps
 from .estimate_reflectance import PHONG_EXPONENTS, REST_MISFIT_LIMIT, Reflectance, estimate_reflectance, rest_misfit
+from .normal_product import FrameNormalProduct, OneRingPattern, stack_blur
 from .phong_shading import PhongShading, phong_shading
-from .sample_footage import CLIPPED_LEVEL, LUMINANCE, FootageSamples, sample_footage
+from .follow_skin import FLOW_LIMIT_PX, follow_skin
+from .sample_footage import CLIPPED_LEVEL, LUMINANCE, FootageSamples, luminance, sample_footage
 from .select_detail_region import (BOUNDARY_RINGS, MIN_LIGHT_SHARE, MIN_VIEW_WEIGHT, locality_order,
                                    select_detail_region)
 from .solve_heights import TEMPORAL_REACH, HeightSolve, HeightWeights, ShadedFrame, shade_frame, solve_heights
@@ -41,10 +47,12 @@ from .vertex_gradient import VertexGradient, vertex_gradient
 __all__ = [
     "phong_shading", "PhongShading",
     "vertex_gradient", "VertexGradient",
+    "FrameNormalProduct", "OneRingPattern", "stack_blur",
     "solve_heights", "shade_frame", "ShadedFrame", "HeightWeights", "HeightSolve", "TEMPORAL_REACH",
     "estimate_reflectance", "rest_misfit", "Reflectance", "PHONG_EXPONENTS", "REST_MISFIT_LIMIT",
     "SurfaceLowPass",
-    "sample_footage", "FootageSamples", "LUMINANCE", "CLIPPED_LEVEL",
+    "sample_footage", "FootageSamples", "luminance", "LUMINANCE", "CLIPPED_LEVEL",
+    "follow_skin", "FLOW_LIMIT_PX",
     "select_detail_region", "locality_order", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS",
     "DetailFrameStage", "DETAIL_DEFAULTS",
     "DetailMaps", "FLAT_NORMAL", "FLAT_ENCODED",

@@ -49,6 +49,7 @@ DETAIL_DEFAULTS: dict[str, Any] = {
     "marker_patch_mm": 5.0,
     "shadow_edge_rings": 2,
     "blur_px": DEFAULT_BLUR_PX,
+    "follow_skin": True,
 }
 """The stage's options and their defaults (``detail.json`` records the values used)."""
 
@@ -158,6 +159,29 @@ class DetailFrameStage:
             low = self._low = SurfaceLowPass(result.mesh.vertices[self.region], faces, self.options["gain_sigma_mm"])
         return low
 
+    def _rest_view(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per camera: the rest frame's (video frame 0) luminance and where the samples were read in it."""
+        rest = getattr(self, "_rest", None)
+        if rest is None:
+            from .sample_footage import luminance
+
+            _, X = self.mocap_vertices(0)
+            rest = self._rest = [(luminance(self.image(c, 0)), camera.project(X[self.region]).pixels)
+                                 for c, camera in enumerate(self.cameras)]
+        return rest
+
+    def _followed_pixels(self, images: Sequence[np.ndarray], points: FloatArray) -> tuple[list[np.ndarray], np.ndarray]:
+        """Per camera where each sample's rest-frame skin point is now (:func:`~facecap.sfs.follow_skin`)."""
+        from .follow_skin import follow_skin
+        from .sample_footage import luminance
+
+        pixels, followed = [], []
+        for c, (camera, (rest_grey, rest_pixels)) in enumerate(zip(self.cameras, self._rest_view())):
+            at, ok = follow_skin(rest_grey, luminance(images[c]), rest_pixels, camera.project(points).pixels)
+            pixels.append(at)
+            followed.append(ok)
+        return pixels, np.stack(followed)
+
     # -- one frame ---------------------------------------------------------------------------------------
     def large_scale(self, video_frame: int) -> FloatArray:
         """The layer below (face frame, mm) at a video frame's mocap time (linear between mocap frames)."""
@@ -180,7 +204,8 @@ class DetailFrameStage:
 
         Returns the frame (its ``gradient`` the one given, or this frame's) and what was found on the way:
         ``world`` (r, 3) the samples in the mocap frame, ``clipped`` (C, r), ``seen`` (C, r) before the
-        removals, ``gain`` (r,) the slow gain taken out (1 without ``gain``).
+        removals, ``gain`` (r,) the slow gain taken out (1 without ``gain``), ``followed`` (C, r) where the
+        optical flow placed the sample (None on the rest frame or without ``follow_skin``).
         """
         from ..cameras import RayCaster
         from ..mesh.vertex_normals import vertex_normals
@@ -195,7 +220,10 @@ class DetailFrameStage:
         P = X[region]
         visible = [caster.visible(P, camera) for camera in self.cameras]
         images = [self.image(c, video_frame) for c in range(len(self.cameras))]
-        samples = sample_footage(images, self.cameras, P, N, visible)
+        pixels, followed = None, None
+        if self.options["follow_skin"] and video_frame != 0:
+            pixels, followed = self._followed_pixels(images, P)
+        samples = sample_footage(images, self.cameras, P, N, visible, pixels=pixels)
         weight = samples.weight.copy()
         setup = self.lights
         to_light, irradiance, lit_all = [], [], []
@@ -248,7 +276,8 @@ class DetailFrameStage:
             slow = self._low_pass()(mean_ratio, total)
             slow = np.where(np.isfinite(slow) & (slow > 1e-6), slow, 1.0)
             frame = frame._replace(intensity=samples.intensity / slow[None])
-        found = {"world": P, "clipped": samples.clipped, "seen": samples.weight > 0, "gain": slow}
+        found = {"world": P, "clipped": samples.clipped, "seen": samples.weight > 0, "gain": slow,
+                 "followed": followed}
         return frame, found
 
     def parameters(self) -> dict[str, Any]:

@@ -19,7 +19,7 @@ import numpy as np
 from ..errors import InputError
 from ..typing import FloatArray
 
-__all__ = ["FootageSamples", "sample_footage", "LUMINANCE", "CLIPPED_LEVEL"]
+__all__ = ["FootageSamples", "sample_footage", "luminance", "LUMINANCE", "CLIPPED_LEVEL"]
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 """Rec. 709 luminance of linear RGB: the scalar the shading is solved on (a grey image is used as it is)."""
@@ -55,7 +55,8 @@ class FootageSamples(NamedTuple):
     pixels: FloatArray
 
 
-def _luminance(image: np.ndarray) -> np.ndarray:
+def luminance(image: np.ndarray) -> np.ndarray:
+    """(H, W) float32: the Rec. 709 luminance of a linear colour image (a grey image as it is)."""
     if image.ndim == 2:
         return image.astype(np.float32)
     if image.ndim == 3 and image.shape[2] >= 3:
@@ -66,7 +67,7 @@ def _luminance(image: np.ndarray) -> np.ndarray:
 
 
 def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points: FloatArray, normals: FloatArray,
-                   visible: Sequence[np.ndarray]) -> FootageSamples:
+                   visible: Sequence[np.ndarray], *, pixels: Sequence[Any] | None = None) -> FootageSamples:
     """Read each camera's linear image at each sample.
 
     Parameters
@@ -80,6 +81,9 @@ def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points:
         Their unit normals.
     visible : sequence of (r,) bool arrays
         Whether each camera sees each sample (:meth:`facecap.cameras.RayCaster.visible`).
+    pixels : sequence of (r, 2) float arrays or None, optional
+        Per camera, where to read each sample instead of where it projects (:func:`~facecap.sfs.follow_skin`);
+        None for a camera: its projection.
 
     Returns
     -------
@@ -90,8 +94,8 @@ def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points:
     X = np.asarray(points, dtype=np.float64)
     N = np.asarray(normals, dtype=np.float64)
     C, r = len(cameras), X.shape[0]
-    if len(images) != C or len(visible) != C:
-        raise InputError(f"expected one image and one visibility per camera ({C})")
+    if len(images) != C or len(visible) != C or (pixels is not None and len(pixels) != C):
+        raise InputError(f"expected one image, one visibility (and one pixel array if any) per camera ({C})")
     intensity = np.zeros((C, r))
     weight = np.zeros((C, r))
     clipped = np.zeros((C, r), dtype=bool)
@@ -107,16 +111,19 @@ def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points:
         seen = np.asarray(visible[c], dtype=bool)
         if not seen.any():
             continue
-        pixels = camera.project(X[seen]).pixels.astype(np.float32)
-        grey = _luminance(image)
+        if pixels is not None and pixels[c] is not None:
+            at = np.asarray(pixels[c], dtype=np.float32)[seen]
+        else:
+            at = camera.project(X[seen]).pixels.astype(np.float32)
+        grey = luminance(image)
         peak = image.max(axis=2) if image.ndim == 3 else image
         # a pixel is clipped when any of the four it is read from is: dilate the clipped mask by one
         hot = cv2.dilate((peak >= CLIPPED_LEVEL).astype(np.uint8), np.ones((2, 2), np.uint8)).astype(np.float32)
         # OpenCV's remap takes maps under 32767 a side: the samples laid out in rows of 1024
-        k = pixels.shape[0]
+        k = at.shape[0]
         rows_needed = -(-k // 1024)
         padded = np.zeros((rows_needed * 1024, 2), dtype=np.float32)
-        padded[:k] = pixels
+        padded[:k] = at
         map_x = padded[:, 0].reshape(rows_needed, 1024)
         map_y = padded[:, 1].reshape(rows_needed, 1024)
         value = cv2.remap(grey, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
@@ -124,7 +131,7 @@ def sample_footage(images: Sequence[np.ndarray], cameras: Sequence[Any], points:
         near_hot = cv2.remap(hot, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
                              borderValue=0).ravel()[:k]
         rows = np.flatnonzero(seen)
-        where[c, rows] = pixels
+        where[c, rows] = at
         intensity[c, rows] = value
         cos = np.sum(N[rows] * to_eye[c, rows], axis=1)
         lo, hi = GRAZING_COS
