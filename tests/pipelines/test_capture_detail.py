@@ -51,3 +51,15 @@ def test_no_maps_without_uvs_or_with_size_zero(tmp_path):
     record = write_detail_frame_maps(tmp_path / "maps", quad_scan(), heights, np.arange(mesh.n_vertices),
                                      lambda j: mesh.vertices, np.zeros(1), map_size=0)
     assert "0" in record["none"] and not (tmp_path / "maps").exists()
+
+
+def test_a_transfer_against_the_pixel_type_is_flagged():
+    import numpy as np
+
+    from facecap.pipelines.capture_detail import _transfer_doubt
+
+    eight, sixteen = np.zeros((4, 4, 3), np.uint8), np.zeros((4, 4, 3), np.uint16)
+    assert _transfer_doubt(eight, "auto", "cam") is None
+    assert _transfer_doubt(eight, "srgb", "cam") is None and _transfer_doubt(sixteen, "linear", "cam") is None
+    assert "8-bit footage read as linear" in _transfer_doubt(eight, "linear", "cam_left")
+    assert "usually linear" in _transfer_doubt(sixteen, "srgb", "cam_left")

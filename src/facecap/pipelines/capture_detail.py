@@ -64,6 +64,23 @@ def _transfer_of(image: np.ndarray, transfer: str, where: str) -> str:
     return "srgb" if np.asarray(image).dtype == np.uint8 else "linear"
 
 
+def _transfer_doubt(image: np.ndarray, transfer: str, where: str) -> str | None:
+    """A warning when an explicit ``transfer`` goes against how files of this pixel type are written, else None.
+
+    Cameras and encoders write 8-bit files sRGB-encoded and 16-bit or float files linear; reading either the
+    other way bends every shading value by the sRGB curve (a factor 2-5 in the mid-tones), which the solve
+    then reads as slopes. The option may be right (a linear 8-bit machine-vision camera), so this warns.
+    """
+    if transfer not in ("linear", "srgb"):
+        return None
+    usual = _transfer_of(image, "auto", where)
+    if usual == transfer:
+        return None
+    kind = "8-bit" if np.asarray(image).dtype == np.uint8 else "16-bit or float"
+    return (f"{where}: {kind} footage read as {transfer} (--transfer {transfer}); such files are usually {usual}: "
+            f"if these are, every shading value is bent by the sRGB curve")
+
+
 def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], footage: Sequence[Any], lights: Any,
                    out_dir: str | os.PathLike[str], *, video_rate_hz: float | None = None,
                    first_mocap_frame: float = 0.0, regions: Any = None, transfer: str = "auto",
@@ -163,6 +180,9 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
     if len(chosen_transfer) != 1:
         raise InputError("the footage mixes 8-bit and 16-bit files: give --transfer")
     encoding = chosen_transfer.pop()
+    doubts = {_transfer_doubt(image, transfer, path) for image, path in zip(first_images, footage)} - {None}
+    for doubt in sorted(doubts):
+        warnings.warn(doubt, FacecapWarning, stacklevel=2)
     n_video = min(counts)
     sync = synchronize(result.rate, result.n_frames, video_rate_hz, n_video, first_mocap_frame=first_mocap_frame,
                        footage_name=" and ".join(footage))
