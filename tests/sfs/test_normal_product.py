@@ -4,7 +4,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from facecap.sfs.camera_blur import camera_blur
-from facecap.sfs.normal_product import FrameNormalProduct, OneRingPattern, stack_blur
+from facecap.sfs.normal_product import FrameNormalProduct, OneRingPattern, compile_blur
 from facecap.sfs.solve_heights import _one_ring_average
 from facecap.sfs.vertex_gradient import vertex_gradient
 
@@ -40,7 +40,7 @@ def _scipy_product(G, S, b, w, blur, x):
 def test_the_product_matches_scipy_with_and_without_the_blur():
     for blurred in (False, True):
         G, S, b, w, blur, rng = _setup(blurred)
-        product = FrameNormalProduct(OneRingPattern(G, S), b, w, None if blur is None else stack_blur(blur))
+        product = FrameNormalProduct(OneRingPattern(G, S), b, w, None if blur is None else compile_blur(blur))
         x = rng.normal(size=b.shape[1])
         expected = _scipy_product(G, S, b, w, blur, x)
         # the blur is kept in float32 (its passes are bound by memory): 1e-7 relative
@@ -49,7 +49,7 @@ def test_the_product_matches_scipy_with_and_without_the_blur():
 
 def test_the_product_is_symmetric_and_positive():
     G, S, b, w, blur, rng = _setup(True, seed=3)
-    product = FrameNormalProduct(OneRingPattern(G, S), b, w, stack_blur(blur))
+    product = FrameNormalProduct(OneRingPattern(G, S), b, w, compile_blur(blur))
     x, y = rng.normal(size=(2, b.shape[1]))
     assert abs(x @ product(y) - y @ product(x)) < 1e-10 * abs(x @ product(y))
     assert x @ product(x) > 0

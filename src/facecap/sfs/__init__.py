@@ -9,7 +9,7 @@ has the method step by step and the decisions.
 - :func:`vertex_gradient`, :class:`VertexGradient` (``vertex_gradient.py``): heights to normals.
 - :func:`solve_heights`, :func:`shade_frame`, :class:`ShadedFrame`, :class:`HeightWeights`,
   :class:`HeightSolve`, :data:`TEMPORAL_REACH` (``solve_heights.py``): the space-time solve (eqs. 6-8).
-- :class:`FrameNormalProduct`, :class:`OneRingPattern`, :func:`stack_blur` (``normal_product.py``): the
+- :class:`FrameNormalProduct`, :class:`OneRingPattern`, :func:`compile_blur` (``normal_product.py``): the
   solve's normal-equations product, compiled.
 - :func:`estimate_reflectance`, :func:`rest_misfit`, :class:`Reflectance`, :data:`PHONG_EXPONENTS`,
   :data:`REST_MISFIT_LIMIT` (``estimate_reflectance.py``): albedo and Phong lobe from the rest frame, and
@@ -34,7 +34,7 @@ from .camera_blur import DEFAULT_BLUR_PX, camera_blur
 from .detail_frame_stage import DETAIL_DEFAULTS, DetailFrameStage
 from .detail_maps import FLAT_ENCODED, FLAT_NORMAL, DetailMaps
 from .estimate_reflectance import PHONG_EXPONENTS, REST_MISFIT_LIMIT, Reflectance, estimate_reflectance, rest_misfit
-from .normal_product import FrameNormalProduct, OneRingPattern, stack_blur
+from .normal_product import FrameNormalProduct, OneRingPattern, compile_blur
 from .phong_shading import PhongShading, phong_shading
 from .follow_skin import FLOW_LIMIT_PX, follow_skin
 from .sample_footage import CLIPPED_LEVEL, LUMINANCE, FootageSamples, luminance, sample_footage
@@ -47,7 +47,7 @@ from .vertex_gradient import VertexGradient, vertex_gradient
 __all__ = [
     "phong_shading", "PhongShading",
     "vertex_gradient", "VertexGradient",
-    "FrameNormalProduct", "OneRingPattern", "stack_blur",
+    "FrameNormalProduct", "OneRingPattern", "compile_blur",
     "solve_heights", "shade_frame", "ShadedFrame", "HeightWeights", "HeightSolve", "TEMPORAL_REACH",
     "estimate_reflectance", "rest_misfit", "Reflectance", "PHONG_EXPONENTS", "REST_MISFIT_LIMIT",
     "SurfaceLowPass",

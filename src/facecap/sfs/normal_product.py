@@ -25,7 +25,7 @@ import scipy.sparse as sp
 
 from .._threads import available_cores
 
-__all__ = ["OneRingPattern", "FrameNormalProduct", "stack_blur"]
+__all__ = ["OneRingPattern", "FrameNormalProduct", "compile_blur"]
 
 
 @numba.njit(nogil=True, parallel=True)
@@ -51,7 +51,7 @@ def _forward(indptr, indices, gx, gy, gz, s, x, b, u, sx):  # pragma: no cover -
 
 @numba.njit(nogil=True, parallel=True)
 def _blur(indptr, indices, data, u, w, out):  # pragma: no cover - compiled
-    """out[i] = w[i] * (B u)_i (w empty: no weight). One camera; 1-D arrays (2-D indexing costs 3x here)."""
+    """out[i] = w[i] * (B u)_i (w empty: no weight), for one camera."""
     r = indptr.size - 1
     weighted = w.size > 0
     for i in numba.prange(r):
@@ -133,7 +133,7 @@ def _compiled_csr(matrix: sp.spmatrix) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return m.indptr.astype(np.int64), m.indices.astype(np.int32), m.data.astype(np.float32)
 
 
-def stack_blur(blur: Sequence[sp.spmatrix]) -> list[tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]]:
+def compile_blur(blur: Sequence[sp.spmatrix]) -> list[tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]]:
     """Each camera's blur and its transpose in the compiled product's layout (made once per frame)."""
     return [(_compiled_csr(m), _compiled_csr(m.T)) for m in blur]
 
@@ -147,7 +147,7 @@ class FrameNormalProduct:
     b : (C, r, 3) float array
         The shading's sensitivity to the gradient, per camera (scaled as the image term is).
     weight : (C, r) float array
-    blur : result of :func:`stack_blur`, or None
+    blur : result of :func:`compile_blur`, or None
         Each camera's; None: no blur.
     """
 

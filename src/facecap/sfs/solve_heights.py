@@ -38,7 +38,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import InputError
 from ..typing import FloatArray
-from .normal_product import FrameNormalProduct, OneRingPattern, stack_blur
+from .normal_product import FrameNormalProduct, OneRingPattern, compile_blur
 from .phong_shading import phong_shading
 from .vertex_gradient import VertexGradient
 
@@ -287,10 +287,10 @@ def solve_heights(frames: Sequence[ShadedFrame], *, albedo: Any, k_s: Any = 0.0,
             patterns[id(G)] = OneRingPattern(G, spatial * np.sqrt(weights.spatial))
         return patterns[id(G)]
 
-    def stacked_blur(t: int) -> Any:
-        """Frame ``t``'s blurs, stacked once for every Gauss-Newton step."""
+    def compiled_blur(t: int) -> Any:
+        """Frame ``t``'s blurs in the compiled layout, made once for every Gauss-Newton step."""
         if t not in blurs:
-            blurs[t] = None if frames[t].blur is None else stack_blur(frames[t].blur)
+            blurs[t] = None if frames[t].blur is None else compile_blur(frames[t].blur)
         return blurs[t]
 
     before = residual_rms(np.zeros((T, r)))
@@ -321,7 +321,7 @@ def solve_heights(frames: Sequence[ShadedFrame], *, albedo: Any, k_s: Any = 0.0,
                     q += (f.blur[c].T @ (f.weight[c] * target))[:, None] * b[c]
             rhs[t] = G.x.T @ q[:, 0] + G.y.T @ q[:, 1] + G.z.T @ q[:, 2]
             blocks.append((G, B, b, f))
-            products.append(FrameNormalProduct(pattern_of(G), b, f.weight, stacked_blur(t)))
+            products.append(FrameNormalProduct(pattern_of(G), b, f.weight, compiled_blur(t)))
 
         def matvec(x: FloatArray) -> FloatArray:
             X = x.reshape(T, r)
