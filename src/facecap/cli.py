@@ -737,6 +737,9 @@ def _add_detail(sub: argparse._SubParsersAction) -> None:
                    help="one albedo for the region, as the paper does, instead of one per sample from the rest frame")
     p.add_argument("--map-size", type=int, default=1024,
                    help="displacement (EXR) and normal (16-bit PNG) maps on the scan's UVs, texels a side; 0: none [1024]")
+    p.add_argument("--bilateral", type=float, nargs="?", const=0.3, default=None, metavar="MM",
+                   help="the paper's post-filter: an adaptive bilateral filter on the heights over the skin, with "
+                        "this spatial standard deviation [off; MM 0.3 when given alone]")
     p.add_argument("--camera-units", default="mm", help="unit of T in OpenCV calibration files [mm]")
     p.add_argument("--scheduler", default=None,
                    help="Dask scheduler address for an existing cluster; 'local' for a local cluster of --workers "
@@ -756,6 +759,8 @@ def _cmd_detail(args: argparse.Namespace) -> int:
 
     if args.workers < 1 or args.map_size < 0:
         raise FacecapError("--workers must be >= 1 and --map-size >= 0")
+    if args.bilateral is not None and not args.bilateral > 0:
+        raise FacecapError(f"--bilateral: expected a length > 0 in mm, got {args.bilateral}")
     lights = read_light_file(args.lights)  # before any long work
     cameras, rate, first = read_footage_cameras(args.cameras, args.video, unit=args.camera_units)
     rate = args.video_rate if args.video_rate is not None else rate
@@ -766,7 +771,7 @@ def _cmd_detail(args: argparse.Namespace) -> int:
     done = capture_detail(args.result, cameras, args.video, lights, args.out, video_rate_hz=rate,
                           first_mocap_frame=first, regions=args.regions, transfer=args.transfer,
                           per_sample_albedo=not args.uniform_albedo, map_size=args.map_size,
-                          scheduler=scheduler, n_workers=args.workers,
+                          bilateral_mm=args.bilateral, scheduler=scheduler, n_workers=args.workers,
                           work_dir=args.work, exports=parse_export_formats(args.export), progress=not args.quiet,
                           export_options={"export_frame": args.export_frame}, overwrite=args.overwrite)
     if not args.quiet:

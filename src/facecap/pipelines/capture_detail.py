@@ -89,7 +89,7 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                    work_dir: Any = None, exports: Sequence[str] = (), chunk_frames: int = CHUNK_VIDEO_FRAMES,
                    progress: bool = False, options: Mapping[str, Any] | None = None,
                    export_options: Mapping[str, Any] | None = None, overwrite: bool = False,
-                   map_size: int = DEFAULT_MAP_SIZE) -> DetailCapture:
+                   map_size: int = DEFAULT_MAP_SIZE, bilateral_mm: float | None = None) -> DetailCapture:
     """Add the fine detail the footage shows to a result.
 
     Parameters
@@ -132,6 +132,10 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
         Texels along each side of the per-video-frame displacement and normal maps on the scan's UVs
         (``maps/``, :func:`write_detail_frame_maps`); 0: no maps. A scan without UVs gets none either
         (``detail.json`` says why).
+    bilateral_mm : float, optional
+        The paper's post-filter (4.3): the heights filtered by :class:`~facecap.sfs.BilateralHeights` with this
+        spatial standard deviation (``--bilateral``; :data:`~facecap.sfs.DEFAULT_BILATERAL_MM` is 0.3 mm). None:
+        none, the default (measured in ``benchmarks/RESULTS.md``, "Fine detail from video").
 
     Returns
     -------
@@ -149,6 +153,7 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
     from ..io.write_performance import PerformanceWriter, check_result_destination
     from ..mesh.vertex_normals import vertex_normals
     from ..runner import run_frames
+    from ..sfs.bilateral_heights import BilateralHeights
     from ..sfs.detail_frame_stage import DetailFrameStage
     from ..sfs.estimate_reflectance import REST_MISFIT_LIMIT, estimate_reflectance, rest_misfit
     from ..sfs.select_detail_region import locality_order, select_detail_region
@@ -261,6 +266,8 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                          progress=progress)
         timings["shape_from_shading_s"] = time.perf_counter() - t
         heights = run.load("heights")
+        if bilateral_mm is not None:
+            heights = BilateralHeights(result.mesh.vertices[region], bilateral_mm)(heights).astype(np.float32)
         residual, residual_before = run.load("residual"), run.load("residual_before")
         t = time.perf_counter()
         bracket = sync.bracket(np.arange(result.n_frames))
@@ -298,6 +305,7 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                 "transfer": encoding, "region_vertices": int(region.size), "clipped_share": clipped,
                 "left_out_by_rest_misfit": left_out, "rest_misfit_limit": limit,
                 "options": stage.options,
+                "bilateral_mm": None if bilateral_mm is None else float(bilateral_mm),
                 "frames": [{"video_frame": j, "mocap_frame": float(mocap_frames[j]),
                             "residual": float(residual[j]), "residual_base": float(residual_before[j]),
                             "height_rms_mm": float(np.sqrt(np.mean(heights[j] ** 2)))} for j in range(n_video)],

@@ -15,6 +15,8 @@ has the method step by step and the decisions.
   :data:`REST_MISFIT_LIMIT` (``estimate_reflectance.py``): albedo and Phong lobe from the rest frame, and
   the samples it cannot explain.
 - :class:`SurfaceLowPass` (``surface_low_pass.py``): the slow gain's filter.
+- :class:`BilateralHeights`, :data:`DEFAULT_BILATERAL_MM` (``bilateral_heights.py``): the paper's optional
+  post-filter (4.3).
 - :func:`sample_footage`, :func:`luminance`, :class:`FootageSamples`, :data:`LUMINANCE`, :data:`CLIPPED_LEVEL`
   (``sample_footage.py``): footage onto the skin.
 - :func:`follow_skin`, :data:`FLOW_LIMIT_PX` (``follow_skin.py``): optical flow against the rest frame, so
@@ -30,6 +32,7 @@ has the method step by step and the decisions.
 
 from __future__ import annotations
 
+from .bilateral_heights import DEFAULT_BILATERAL_MM, BilateralHeights
 from .camera_blur import DEFAULT_BLUR_PX, camera_blur
 from .detail_frame_stage import DETAIL_DEFAULTS, DetailFrameStage
 from .detail_maps import FLAT_ENCODED, FLAT_NORMAL, DetailMaps
@@ -51,6 +54,7 @@ __all__ = [
     "solve_heights", "shade_frame", "ShadedFrame", "HeightWeights", "HeightSolve", "TEMPORAL_REACH",
     "estimate_reflectance", "rest_misfit", "Reflectance", "PHONG_EXPONENTS", "REST_MISFIT_LIMIT",
     "SurfaceLowPass",
+    "BilateralHeights", "DEFAULT_BILATERAL_MM",
     "sample_footage", "FootageSamples", "luminance", "LUMINANCE", "CLIPPED_LEVEL",
     "follow_skin", "FLOW_LIMIT_PX",
     "select_detail_region", "locality_order", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS",
