@@ -1,10 +1,12 @@
-"""Where the detail layer solves by default: the skin that every camera sees well and a light reaches.
+"""Where the detail layer solves by default: the skin that every camera sees, one of them well, and a light reaches.
 
 The paper solved regions a user brushed (its Fig. 7) and named the whole face as
 future work; the default here is the whole face that shading can speak for: seen by
-every camera at a useful angle (two views make the specular tell from the
-diffuse), reached by a light, and away from the mesh's open edges, whose normals
-are one-sided.
+every camera (two views make the specular tell from the diffuse), by at least one of
+them at a useful angle, reached by a light, and away from the mesh's open edges, whose
+normals are one-sided. Asking every camera for a useful angle left out the side of the
+face each camera sees obliquely, where crow's feet are: on the generator's seed 0, 63 %
+of the lines' vertices (``benchmarks/RESULTS.md``, "Fine detail from video": the region).
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ from ..typing import BoolArray
 __all__ = ["select_detail_region", "locality_order", "MIN_VIEW_WEIGHT", "MIN_LIGHT_SHARE", "BOUNDARY_RINGS"]
 
 MIN_VIEW_WEIGHT = 0.5
-"""The least observation weight (:func:`~facecap.sfs.sample_footage`) every camera must give a sample
+"""The least observation weight (:func:`~facecap.sfs.sample_footage`) one camera at least must give a sample
 (a view about 60 degrees from the normal)."""
 
 MIN_LIGHT_SHARE = 0.1
@@ -51,7 +53,7 @@ def select_detail_region(weight: Any, direct: Any, faces: Any, *, mask: Any = No
     E = np.asarray(direct, dtype=np.float64)
     F = np.asarray(faces, dtype=np.int64)
     n = W.shape[1]
-    seen = np.all(W >= MIN_VIEW_WEIGHT, axis=0)
+    seen = np.all(W > 0, axis=0) & np.any(W >= MIN_VIEW_WEIGHT, axis=0)
     reference = np.percentile(E[seen], 95) if seen.any() else 0.0
     chosen = seen & (E >= MIN_LIGHT_SHARE * reference) & (E > 0)
     # open edges: edges used by one triangle
