@@ -9,7 +9,8 @@ expression-driven detail, at the mocap frames of the video frames:
   ``|D - A|`` exceeds 0.03 mm (``h_D`` the added displacement along ``A``'s normal);
 - nothing invented: mean ``|D - A|`` where the truth has no expression-driven detail (outside
   ``detail_mask``, away from markers and the mesh boundary), and on freckles, moles, brows and markers;
-- stable in time: frame-to-frame RMS change of ``D - A`` on the frames where the expression holds.
+- stable in time: frame-to-frame RMS change of ``D - A`` over all frames, and over the pairs of frames where
+  the expression holds (the lines present, their activations changing by less than 0.01 between the two).
 """
 
 from __future__ import annotations
@@ -68,12 +69,17 @@ def detail_metrics(case: Path, base: Path, detail, *, frames: np.ndarray | None 
         sums["marks_n"] += int(marks.sum())
         added_series.append(added)
     series = np.stack(added_series)
+    activation = truth["activation"][video]
+    held = (np.abs(np.diff(activation, axis=0)).max(axis=1) < 0.01) & (activation[1:].max(axis=1) > 0.1)
+    change = np.diff(series, axis=0)
     return {
         "ratio_vertex": sums["v_err"] / max(sums["v_size"], 1e-300),
         "ratio_space": sums["s_err"] / max(sums["s_size"], 1e-300),
         "invented_flat_mm": sums["flat"] / max(sums["flat_n"], 1),
         "invented_marks_mm": sums["marks"] / max(sums["marks_n"], 1),
-        "frame_change_rms_mm": float(np.sqrt(np.mean(np.diff(series, axis=0) ** 2))) if len(series) > 1 else 0.0,
+        "frame_change_rms_mm": float(np.sqrt(np.mean(change ** 2))) if len(series) > 1 else 0.0,
+        "frame_change_held_rms_mm": float(np.sqrt(np.mean(change[held] ** 2))) if held.any() else float("nan"),
+        "held_pairs": int(held.sum()),
         "frames": [int(t) for t in video],
     }
 
