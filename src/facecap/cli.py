@@ -759,8 +759,6 @@ def _cmd_detail(args: argparse.Namespace) -> int:
 
     if args.workers < 1 or args.map_size < 0:
         raise FacecapError("--workers must be >= 1 and --map-size >= 0")
-    if args.bilateral is not None and not args.bilateral > 0:
-        raise FacecapError(f"--bilateral: expected a length > 0 in mm, got {args.bilateral}")
     lights = read_light_file(args.lights)  # before any long work
     cameras, rate, first = read_footage_cameras(args.cameras, args.video, unit=args.camera_units)
     rate = args.video_rate if args.video_rate is not None else rate

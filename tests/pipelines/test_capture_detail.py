@@ -63,3 +63,16 @@ def test_a_transfer_against_the_pixel_type_is_flagged():
     assert _transfer_doubt(eight, "srgb", "cam") is None and _transfer_doubt(sixteen, "linear", "cam") is None
     assert "8-bit footage read as linear" in _transfer_doubt(eight, "linear", "cam_left")
     assert "usually linear" in _transfer_doubt(sixteen, "srgb", "cam_left")
+
+
+def test_a_bilateral_length_that_is_not_one_is_refused_before_anything_is_read_or_written(tmp_path):
+    import pytest
+
+    from facecap.errors import InputError
+    from facecap.pipelines import capture_detail
+
+    for bad in (0.0, -0.3, float("nan")):
+        with pytest.raises(InputError, match="bilateral_mm"):
+            capture_detail(tmp_path / "no-such-result", [], [], None, tmp_path / "out", video_rate_hz=25.0,
+                           bilateral_mm=bad)
+    assert not (tmp_path / "out").exists()

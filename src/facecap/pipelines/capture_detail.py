@@ -145,7 +145,8 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
     ------
     InputError
         A result without its correspondence map, counts that do not match, footage of another size than its
-        calibration or not covering the take, no part of the face both seen and lit.
+        calibration or not covering the take, no part of the face both seen and lit, a ``bilateral_mm`` that
+        is not a length.
     """
     from ..cameras import LightSetup, open_footage, read_light_file, synchronize
     from ..io.read_region_mask import read_region_mask
@@ -163,6 +164,8 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
 
     timings: dict[str, float] = {}
     start_all = time.perf_counter()
+    if bilateral_mm is not None and not (np.isfinite(bilateral_mm) and bilateral_mm > 0):
+        raise InputError(f"bilateral_mm (--bilateral): expected a length > 0 in mm, got {bilateral_mm!r}")
     check_result_destination(out_dir, overwrite=overwrite)
     result_dir = Path(result_dir)
     result = read_result(result_dir)
@@ -266,8 +269,9 @@ def capture_detail(result_dir: str | os.PathLike[str], cameras: Sequence[Any], f
                          progress=progress)
         timings["shape_from_shading_s"] = time.perf_counter() - t
         heights = run.load("heights")
-        if bilateral_mm is not None:
-            heights = BilateralHeights(result.mesh.vertices[region], bilateral_mm)(heights).astype(np.float32)
+        if bilateral_mm is not None:  # on the rest surface in mm, as the filter's lengths are
+            rest_mm = result.mesh.vertices[region] * float(mm_per_unit(result.units))
+            heights = BilateralHeights(rest_mm, bilateral_mm)(heights).astype(np.float32)
         residual, residual_before = run.load("residual"), run.load("residual_before")
         t = time.perf_counter()
         bracket = sync.bracket(np.arange(result.n_frames))

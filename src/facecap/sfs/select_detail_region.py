@@ -22,7 +22,7 @@ __all__ = ["select_detail_region", "locality_order", "MIN_VIEW_WEIGHT", "MIN_LIG
 
 MIN_VIEW_WEIGHT = 0.5
 """The least observation weight (:func:`~facecap.sfs.sample_footage`) one camera at least must give a sample
-(a view about 60 degrees from the normal)."""
+(a view about 65 degrees from the normal)."""
 
 MIN_LIGHT_SHARE = 0.1
 """The least direct irradiance on the surface, as a share of the region's 95th percentile (shadowed skin is
