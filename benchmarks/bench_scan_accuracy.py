@@ -56,7 +56,9 @@ from facecap.io.conditioned_take import read_conditioned_take  # noqa: E402
 from facecap.io.registered_scans import read_registered_scans  # noqa: E402
 from facecap.markers import rigid_fit  # noqa: E402
 from facecap.report.evaluate_result import evaluate_result, result_and_truth_mm  # noqa: E402
-from facecap.synth import SkinRegions, write_planned_scans, write_synthetic_case  # noqa: E402
+from facecap.io import write_mesh  # noqa: E402
+from facecap.synth import (SkinRegions, bake_skin_albedo, textured_neutral, write_planned_scans,  # noqa: E402
+                           write_synthetic_case)
 from facecap.io.ict_sample import load_ict_sample
 
 
@@ -107,7 +109,8 @@ def _basis_errors(synthetic, bases_dir: Path, blend_dir: Path, truth_path: Path,
     }
 
 
-def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: int = 30, colors: bool = False) -> dict:
+def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: int = 30, colors: bool = False,
+             textured: bool = False) -> dict:
     sample = load_ict_sample()
     synthetic = make_case(case, n_frames=frames)
     files = write_synthetic_case(synthetic, root / "inputs", region_labels=sample.region_labels,
@@ -133,11 +136,20 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
         neutral = write_planned_scans(synthetic, [0], root / "texture", target_vertices=2 * scan_vertices,
                                       first_seed=case.scan_seed + 1000, **colour)
         texture = ["--template-texture", str(neutral[0]), "--color-alignment"]
+    template = files.scan
+    if textured:  # scanners deliver a colour texture: every scan its own atlas, the neutral textured in its own
+        regions = SkinRegions(sample.region_labels, tuple(sample.region_names),
+                              synthetic.scan.vertices[sample.landmarks[48:60]])
+        skin = bake_skin_albedo(synthetic.scan, seed=case.scan_seed, region=regions)
+        template = root / "inputs" / "neutral_textured.obj"
+        write_mesh(textured_neutral(synthetic.scan, skin, seed=case.scan_seed + 1000), template)
+        colour = dict(skin_texture=skin, file_format="obj")
+        texture = ["--color-alignment"]
     scans = [str(p) for p in scan_case(case, synthetic, planned, root / "scans", target_vertices=scan_vertices,
                                        **colour)]
     t = time.perf_counter()
     assert main([*cli, "register-scans", "--plan", str(root / "plan.json"), "--markers", str(files.markers),
-                 "--scans", *scans, "--template", str(files.scan), *texture, "--out", str(root / "bases")]) == 0
+                 "--scans", *scans, "--template", str(template), *texture, "--out", str(root / "bases")]) == 0
     register_s = time.perf_counter() - t
     assert main([*cli, "blend", "--bases", str(root / "bases"), "--markers", str(files.markers),
                  "--out", str(root / "blend")]) == 0
@@ -152,6 +164,7 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
     return {
         "case": case.name, "held_out": case.held_out, "tolerance": case.tolerance, "scans": len(planned),
         "colors": colors,
+        "textured": textured,
         **{f"{k}_mm": v for k, v in errors.items()},
         "ratio": errors["blend"] / baseline,
         "stabilization_deg": {"median": float(np.median(stab_deg)), "p95": float(np.percentile(stab_deg, 95)),
@@ -173,6 +186,8 @@ def main_bench() -> None:
                              "than 30 at the default tolerance)")
     parser.add_argument("--colors", action="store_true",
                         help="coloured scans, a coloured neutral scan as --template-texture, --color-alignment")
+    parser.add_argument("--textured", action="store_true",
+                        help="scans with colour textures (0.25 mm, pores), a textured neutral template, --color-alignment")
     parser.add_argument("--keep", help="keep each case's folder under this directory")
     args = parser.parse_args()
     cases = chosen_cases(args)
@@ -182,11 +197,13 @@ def main_bench() -> None:
             root = Path(args.keep) / case.name
             root.mkdir(parents=True, exist_ok=True)
             row = run_case(case, root, frames=args.frames, scan_vertices=args.scan_vertices,
-                           max_scans=args.max_scans, colors=args.colors)
+                           max_scans=args.max_scans, colors=args.colors,
+                           textured=args.textured)
         else:
             with tempfile.TemporaryDirectory(prefix="facecap_scan_accuracy_") as tmp:
                 row = run_case(case, Path(tmp), frames=args.frames, scan_vertices=args.scan_vertices,
-                               max_scans=args.max_scans, colors=args.colors)
+                               max_scans=args.max_scans, colors=args.colors,
+                           textured=args.textured)
         rows.append(row)
         print("RESULT", json.dumps(row), flush=True)
     print("| case | held out | scans | stabilisation deg (median / max) | animate auto / off | blend | ratio (bar 0.5) "

@@ -475,10 +475,11 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--marker-offset", type=float, default=1.5, help="marker centre height above the skin, mm [1.5]")
     p.add_argument("--template-texture", default=None,
                    help="a coloured scan of the template's expression (e.g. the neutral's own scan), in the "
-                        f"template's units: the skin colour the scans are aligned to; {_formats_read('mesh')}")
+                        "template's units: the skin colour the scans are aligned to (default: the template's own "
+                        f"texture or vertex colours); {_formats_read('mesh')}")
     p.add_argument("--color-alignment", action="store_true",
                    help="slide the registrations along the scans until the skin colours match the template's "
-                        "(scans and template or --template-texture with vertex colours; experimental)")
+                        "(scans and template or --template-texture with a colour texture or vertex colours)")
     p.add_argument("--refine", action="store_true",
                    help="run the fine-scale (optical flow) registration of section 6.2 (experimental)")
     p.add_argument("--out", required=True, help="bases folder")

@@ -59,6 +59,12 @@ class Mesh:
         colours. Readers convert 8-bit values (0..255) before building the mesh.
         Kept by :meth:`with_vertices` (the colours belong to the vertices, not
         to their positions).
+    texture : (h, w, 3) uint8 or uint16 array, or None
+        The colour image the UVs index (a scanner's texture atlas), as stored:
+        sRGB-encoded, row 0 the image's top, RGB order; None (default) when the
+        mesh has none. UVs follow the OBJ convention (``v = 0`` at the image's
+        bottom, ``u`` wrapping). Needs ``uvs`` and ``uv_indices``. Kept by
+        :meth:`with_vertices`; :func:`facecap.mesh.surface_colors` reads it.
     """
 
     vertices: FloatArray
@@ -70,10 +76,13 @@ class Mesh:
     source_unit: str = "mm"
     source_path: str | None = None
     vertex_colors: FloatArray | None = field(default=None, repr=False)
+    texture: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         V = as_vertices(self.vertices, name="vertices")
         object.__setattr__(self, "vertices", V)
+        if self.texture is not None:
+            object.__setattr__(self, "texture", _as_texture(self.texture, self.uvs, self.uv_indices))
         if self.vertex_colors is not None:
             object.__setattr__(
                 self, "vertex_colors", _as_vertex_colors(self.vertex_colors, V.shape[0])
@@ -113,6 +122,18 @@ class Mesh:
     def with_vertices(self, vertices: FloatArray) -> "Mesh":
         """A copy of this mesh with other vertex positions (mm), same topology."""
         return replace(self, vertices=vertices)
+
+
+def _as_texture(image: object, uvs: object, uv_indices: object) -> np.ndarray:
+    """``image`` as a C-contiguous (h, w, 3) uint8 or uint16 array, or raise; the UVs must exist."""
+    arr = np.asarray(image)
+    if arr.ndim != 3 or arr.shape[2] != 3 or arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise MeshError(f"texture: expected an (h, w, 3) RGB image, got shape {arr.shape}")
+    if arr.dtype not in (np.uint8, np.uint16):
+        raise MeshError(f"texture: expected 8- or 16-bit values as stored, got {arr.dtype}")
+    if uvs is None or uv_indices is None:
+        raise MeshError("texture: a texture needs uvs and uv_indices to say where it goes")
+    return np.ascontiguousarray(arr)
 
 
 def _as_vertex_colors(C: object, n_vertices: int) -> np.ndarray:

@@ -118,3 +118,37 @@ def test_register_scans_slides_the_bases_by_colour_when_asked():
     with pytest.raises(InputError, match="vertex colours"):
         register_scans([Mesh(m.vertices, m.faces) for m in recoloured], markers, template_texture=texture,
                        align_colors=True, **common)
+
+
+def _fine_skin(face) -> "SkinTexture":
+    """Skin-like detail at 0.3-3 mm in the face's own atlas (octaves of blurred noise), not the package's skin."""
+    import cv2
+
+    from facecap.io.write_gltf import triangle_corners
+    from facecap.synth import SkinTexture
+
+    rng = np.random.default_rng(11)
+    size = 1024  # 0.29 mm a texel on this face
+    detail = sum(a * s * cv2.GaussianBlur(rng.normal(size=(size, size)), (0, 0), s)
+                 for a, s in ((1.0, 1.0), (0.6, 3.0), (0.4, 8.0)))
+    detail /= detail.std()
+    image = np.clip(0.4 * (1.0 + 0.15 * detail), 0.0, 1.0)[:, :, None] * np.array([1.0, 0.75, 0.62])
+    return SkinTexture(image.astype(np.float32), face.uvs, np.asarray(face.uv_indices)[triangle_corners(face)])
+
+
+def test_a_known_slide_is_undone_by_the_scans_texture(slid_face):
+    # scanners deliver a colour texture at 0.25 mm: the scan's own atlas against the neutral's
+    from facecap.synth import textured_neutral
+
+    s, V, F, _, _, slid, amount = slid_face
+    skin = _fine_skin(s.mesh)
+    scan = scan_expression(V, F, seed=1, target_vertices=20000, scanner_from_face=np.eye(4), skin_texture=skin).mesh
+    neutral = textured_neutral(s.mesh, skin, seed=2)
+    moved = amount > 0.5
+    before = np.linalg.norm(slid - V, axis=1)
+    result = align_albedo(slid, F, V, neutral, scan)
+    after = np.linalg.norm(result.vertices - V, axis=1)
+    seen = result.confidence > 0.1
+    assert before[moved & seen].mean() > 0.7
+    assert after[moved & seen].mean() < 0.3 * before[moved & seen].mean(), (  # measured 0.84 -> 0.13 mm
+        before[moved & seen].mean(), after[moved & seen].mean())

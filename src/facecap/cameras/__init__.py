@@ -20,7 +20,7 @@ centre of the top-left pixel, ``u`` right, ``v`` down.
   as a :class:`FootageCameras`.
 - :func:`synchronize` (``synchronize.py``): a :class:`FootageSync` mapping video
   frames to mocap frames by rate ratio and offset, checking the footage covers the take.
-- :func:`read_image` / :func:`write_image` (``image_file.py``): one PNG (8/16-bit),
+- :func:`read_image` / :func:`write_image` (``io/image_file.py``): one PNG (8/16-bit),
   JPEG, TIFF or EXR image as stored; :func:`image_to_float`,
   :func:`srgb_to_linear`, :func:`linear_to_srgb` (``image_to_float.py``).
 - :func:`open_footage` (``footage.py``): an image sequence or a video file
@@ -45,7 +45,7 @@ from __future__ import annotations
 from .camera import DISTORTION_SIZES, Camera, PixelRays, Projection
 from .camera_file import CAMERA_FILE_FORMAT, CameraSetup, read_camera_file, write_camera_file
 from .footage import VIDEO_SUFFIXES, Footage, open_footage
-from .image_file import IMAGE_SUFFIXES, read_image, write_image
+from ..io.image_file import IMAGE_SUFFIXES, read_image, write_image
 from .light import LIGHT_KINDS, REFERENCE_DISTANCE_MM, Light
 from .light_file import LIGHT_FILE_FORMAT, LightSetup, read_light_file, write_light_file
 from .calibrate_light import EDGE_PROFILES, LightCalibration, LightCalibrationError, calibrate_light

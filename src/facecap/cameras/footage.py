@@ -1,6 +1,6 @@
 """One camera's footage, read lazily: an image sequence (PNG, JPEG, 16-bit PNG, TIFF, EXR) or a video file (PyAV).
 
-Frames come as stored (see :mod:`facecap.cameras.image_file`): ``(H, W)`` or
+Frames come as stored (see :mod:`facecap.io.image_file`): ``(H, W)`` or
 ``(H, W, 3)`` RGB arrays of ``uint8``, ``uint16`` or ``float32``, nothing
 decoded or rescaled; :func:`~facecap.cameras.image_to_float` and
 :func:`~facecap.cameras.srgb_to_linear` convert.
@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from .image_file import IMAGE_SUFFIXES, read_image
+from ..io.image_file import IMAGE_SUFFIXES, read_image
 
 __all__ = ["Footage", "open_footage", "VIDEO_SUFFIXES"]
 

@@ -13,7 +13,7 @@ from tqdm.auto import tqdm
 
 from ..errors import InputError
 from ..io.atomic_write import atomic_folder
-from .image_file import IMAGE_SUFFIXES, write_image
+from ..io.image_file import IMAGE_SUFFIXES, write_image
 
 __all__ = ["write_image_sequence", "SEQUENCE_FILE"]
 

@@ -4,6 +4,11 @@ In the order a user meets them:
 
 - :func:`read_mesh` (``read_mesh.py``): OBJ, PLY or glTF to a :class:`~facecap.Mesh`
   in mm, vertex order and count kept; :func:`write_mesh` (``write_mesh.py``) writes one back.
+- :func:`read_texture_image`, :func:`read_mtl`, :func:`pack_textures` (``mesh_texture.py``): a
+  mesh's colour texture (an OBJ's MTL ``map_Kd``, a glTF base colour, a PLY ``TextureFile``),
+  several packed into one atlas, as :func:`read_mesh` keeps it in ``Mesh.texture``.
+- :func:`read_image` / :func:`write_image` (``image_file.py``): one PNG (8/16-bit), JPEG, TIFF or
+  EXR image as stored (footage frames, maps, textures).
 - :func:`read_markers` (``read_markers.py``): a C3D, TRC, Qualisys TSV or
   Motive/facecap CSV take to a :class:`~facecap.MarkerSequence` in mm, NaN in
   gaps; :func:`write_markers` (``write_markers.py``) writes one.
@@ -80,6 +85,8 @@ from .read_correspondence import MAP_FORMATS, CorrespondenceMatch, match_corresp
 from .mocap_correspondence import read_mocap_correspondence, write_mocap_correspondence
 from .read_markers import MARKER_FORMATS, MARKER_SUFFIXES, read_markers
 from .read_mesh import MESH_FORMATS, MESH_SUFFIXES, read_mesh
+from .image_file import IMAGE_SUFFIXES, read_image, write_image
+from .mesh_texture import TEXTURE_SUFFIXES, MtlMaterial, pack_textures, read_mtl, read_texture_image
 from .conditioned_take import CONDITIONED_TAKE_FORMAT, file_sha256, read_conditioned_take, write_conditioned_take
 from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_registered_scans, write_registered_scans
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
@@ -114,6 +121,14 @@ from .read_region_mask import read_region_mask
 from .ict_sample import IctSample, bundled_path, load_ict_sample
 
 __all__ = [
+    "IMAGE_SUFFIXES",
+    "read_image",
+    "write_image",
+    "TEXTURE_SUFFIXES",
+    "MtlMaterial",
+    "pack_textures",
+    "read_mtl",
+    "read_texture_image",
     "MAPS_FOLDER",
     "detail_map_names",
     "write_detail_maps",

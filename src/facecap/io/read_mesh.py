@@ -10,6 +10,7 @@ glTF goes through trimesh, which keeps each primitive's vertex array as stored.
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from pathlib import Path
 from typing import Any
@@ -20,6 +21,7 @@ from ..errors import FacecapWarning, FileFormatError, MeshError
 from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from ..units import mm_per_unit, normalize_unit
+from .mesh_texture import obj_texture, pack_textures, read_texture_image
 
 __all__ = ["read_mesh", "MESH_FORMATS", "MESH_SUFFIXES"]
 
@@ -144,7 +146,7 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
         parts = _read_ply(p)
     else:
         parts = _read_gltf(p)
-    V, sizes, corners, uvs, uv_corners, colors = parts
+    V, sizes, corners, uvs, uv_corners, colors, texture = parts
 
     if not np.all(np.isfinite(V)):
         bad = int(np.flatnonzero(~np.isfinite(V).all(axis=1))[0])
@@ -161,6 +163,7 @@ def read_mesh(path: str | os.PathLike[str], *, unit: str | None = None) -> Mesh:
         source_unit=unit,
         source_path=str(p),
         vertex_colors=colors,
+        texture=texture,
     )
 
 
@@ -277,7 +280,8 @@ def _is_corner(token: bytes) -> bool:
     return len(parts) <= 3 and all(_is_int(x) for x in parts)
 
 
-_MeshParts = tuple[FloatArray, IntArray, IntArray, FloatArray | None, IntArray | None, np.ndarray | None]
+_MeshParts = tuple[FloatArray, IntArray, IntArray, FloatArray | None, IntArray | None, np.ndarray | None,
+                   np.ndarray | None]
 
 
 def _read_obj(path: Path) -> _MeshParts:
@@ -365,7 +369,8 @@ def _read_obj(path: Path) -> _MeshParts:
         )
     if uv_corners is None:
         UV = None
-    return V, sizes.astype(np.int64), corners, UV, uv_corners, colors
+    UV, uv_corners, texture = obj_texture(path, data, starts, f.lines, UV, uv_corners, sizes)
+    return V, sizes.astype(np.int64), corners, UV, uv_corners, colors, texture
 
 
 def _obj_vertices(v: _ObjKind, path: Path) -> tuple[FloatArray, np.ndarray | None]:
@@ -513,7 +518,23 @@ def _read_ply(path: Path) -> _MeshParts:
                 uvs = np.stack([vertex[su], vertex[sv]], axis=1).astype(np.float64)
                 uv_corners = corners
                 break
-    return V, sizes, corners, uvs, uv_corners, _ply_colors(vertex, path)
+    texture = None
+    if uvs is not None:
+        texture = _ply_texture(data[:body], path)
+    return V, sizes, corners, uvs, uv_corners, _ply_colors(vertex, path), texture
+
+
+def _ply_texture(header: bytes, path: Path) -> np.ndarray | None:
+    """The image a ``comment TextureFile NAME`` header line names (MeshLab's convention), or None."""
+    m = re.search(rb"^comment[ \t]+TextureFile[ \t]+([^\r\n]+)", header, re.MULTILINE | re.IGNORECASE)
+    if m is None:
+        return None
+    name = m.group(1).decode("utf-8", errors="replace").strip()
+    try:
+        return read_texture_image(path.parent / name.replace("\\", "/"))
+    except FileFormatError as exc:
+        warnings.warn(f"{path}: {exc}; the mesh is read without its colour", FacecapWarning, stacklevel=4)
+        return None
 
 
 _PLY_COLOR_NAMES = (("red", "green", "blue"), ("r", "g", "b"),
@@ -784,6 +805,8 @@ def _read_gltf(path: Path) -> _MeshParts:
     Fs: list[np.ndarray] = []
     UVs: list[np.ndarray | None] = []
     Cs: list[np.ndarray | None] = []
+    Ts: list[np.ndarray | None] = []
+    decoded: dict[int, np.ndarray] = {}  # one array per image object: primitives sharing a material share it
     offset = 0
     for name, geom in scene.geometry.items():
         if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
@@ -803,6 +826,7 @@ def _read_gltf(path: Path) -> _MeshParts:
         uv = getattr(geom.visual, "uv", None)
         UVs.append(None if uv is None or len(uv) != len(V) else np.asarray(uv, dtype=np.float64))
         Cs.append(_gltf_colors(geom, len(V)))
+        Ts.append(_gltf_texture(geom, decoded))
         offset += len(V)
     if not Vs:
         raise MeshError("the file has no triangle meshes", path=str(path))
@@ -819,7 +843,34 @@ def _read_gltf(path: Path) -> _MeshParts:
             stacklevel=3,
         )
     colors = np.concatenate(Cs) if all(c is not None for c in Cs) else None  # type: ignore[arg-type]
-    return V, np.full(F.shape[0], 3, dtype=np.int64), F.reshape(-1), uvs, uv_corners, colors
+    texture = None
+    if uvs is not None and uv_corners is not None and all(t is not None for t in Ts):
+        if all(t is Ts[0] for t in Ts):
+            texture = Ts[0]
+        else:  # each primitive its own image: packed into one atlas
+            corner_image = np.repeat(np.arange(len(Fs)), [3 * f.shape[0] for f in Fs])
+            uvs, uv_corners, texture = pack_textures(Ts, uvs, uv_corners, corner_image)  # type: ignore[arg-type]
+    elif uvs is not None and any(t is not None for t in Ts):
+        warnings.warn(f"{path}: only some meshes have a base colour texture; the texture is dropped",
+                      FacecapWarning, stacklevel=3)
+    return V, np.full(F.shape[0], 3, dtype=np.int64), F.reshape(-1), uvs, uv_corners, colors, texture
+
+
+def _gltf_texture(geom: Any, decoded: dict[int, np.ndarray]) -> np.ndarray | None:
+    """The base colour image of a trimesh primitive's material as (h, w, 3) uint8/uint16, or None."""
+    material = getattr(geom.visual, "material", None)
+    image = getattr(material, "baseColorTexture", None)
+    if image is None:
+        image = getattr(material, "image", None)
+    if image is None:
+        return None
+    if id(image) not in decoded:
+        if image.mode.startswith("I"):
+            rgb = np.repeat(np.asarray(image, dtype=np.uint16)[:, :, None], 3, axis=2)
+        else:
+            rgb = np.asarray(image.convert("RGB"), dtype=np.uint8)
+        decoded[id(image)] = np.ascontiguousarray(rgb)
+    return decoded[id(image)]
 
 
 def _gltf_colors(geom: Any, n: int) -> np.ndarray | None:

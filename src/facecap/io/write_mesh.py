@@ -13,12 +13,14 @@ from ..structures import Mesh
 from ..typing import FloatArray, IntArray
 from ..units import mm_per_unit, normalize_unit
 from ..validate import as_vertices
-from .atomic_write import atomic_path
+from .atomic_write import atomic_path, atomic_write_text
+from .image_file import write_image
 
 __all__ = ["write_mesh", "check_uvs"]
 
 _UV_DECIMALS = 9
 _COLOR_DECIMALS = 6
+_MATERIAL = "skin"  # the one material of a textured OBJ that facecap writes
 
 
 def write_mesh(
@@ -77,6 +79,12 @@ def write_mesh(
     ``uchar red, green, blue`` (rounded to the nearest of 0..255, so they read
     back within 1/510). Meshes without colours are written as before.
 
+    A texture (``mesh.texture``, with UVs) is written beside the mesh as
+    ``<stem>_color.png`` (8 or 16 bits, as held), before the mesh: OBJ names it
+    through ``<stem>.mtl`` (``mtllib``, one material ``skin`` with ``map_Kd``),
+    PLY through a ``comment TextureFile`` header line (MeshLab's convention).
+    :func:`~facecap.io.read_mesh` reads both back.
+
     OBJ: ``v`` lines (no normals), ``vt`` lines and ``f v/vt`` corners when the
     mesh has UVs, 1-based indices, polygons as stored in ``mesh``. Numbers are
     formatted in fixed point by vectorised numpy code (no per-value Python
@@ -122,6 +130,11 @@ def write_mesh(
     has_uv = mesh.uvs is not None and mesh.uv_indices is not None
     if has_uv:
         check_uvs(mesh.uvs, mesh.uv_indices, corners.size)  # type: ignore[arg-type]
+    # the texture first, each file complete before the mesh that names it appears
+    texture_name = None
+    if mesh.texture is not None and has_uv:
+        texture_name = f"{p.stem}_color.png"
+        write_image(p.with_name(texture_name), mesh.texture)
 
     if suffix == ".obj":
         if decimals is None:
@@ -133,12 +146,16 @@ def write_mesh(
             V, sizes, corners,
             mesh.uvs if has_uv else None, mesh.uv_indices if has_uv else None,
             int(decimals), unit, mesh.vertex_colors,
+            None if texture_name is None else f"{p.stem}.mtl",
         )
+        if texture_name is not None:
+            atomic_write_text(p.with_suffix(".mtl"), f"# written by facecap\nnewmtl {_MATERIAL}\n"
+                              f"Ka 0 0 0\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd {texture_name}\n")
     else:
         payload = _ply_bytes(
             V, sizes, corners,
             mesh.uvs if has_uv else None, mesh.uv_indices if has_uv else None,
-            unit, mesh.vertex_colors,
+            unit, mesh.vertex_colors, texture_name,
         )
     with atomic_path(p) as tmp:
         with open(tmp, "wb") as fh:
@@ -270,8 +287,10 @@ def _pattern(pieces: list[bytes], k: int) -> np.ndarray:
 
 def _obj_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArray | None,
                uv_indices: IntArray | None, decimals: int, unit: str,
-               colors: np.ndarray | None = None) -> bytes:
+               colors: np.ndarray | None = None, material_file: str | None = None) -> bytes:
     parts = [f"# written by facecap; unit: {unit}\n".encode()]
+    if material_file is not None:
+        parts.append(f"mtllib {material_file}\nusemtl {_MATERIAL}\n".encode())
     if colors is None:
         # one token per coordinate: "v " before x, " " or "\n" after
         parts.append(_join(
@@ -320,7 +339,8 @@ def _obj_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArra
 
 
 def _ply_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArray | None,
-               uv_indices: IntArray | None, unit: str, colors: np.ndarray | None = None) -> bytes:
+               uv_indices: IntArray | None, unit: str, colors: np.ndarray | None = None,
+               texture_name: str | None = None) -> bytes:
     n, k = V.shape[0], sizes.size
     vertex_uv = face_uv = None
     if uvs is not None and uv_indices is not None:
@@ -333,8 +353,10 @@ def _ply_bytes(V: FloatArray, sizes: IntArray, corners: IntArray, uvs: FloatArra
             face_uv = corner_uv.astype("<f4")
     count_type, count_dt = ("uchar", "u1") if sizes.max() <= 255 else ("int", "<i4")
 
-    header = ["ply", "format binary_little_endian 1.0", f"comment written by facecap; unit: {unit}",
-              f"element vertex {n}", "property double x", "property double y", "property double z"]
+    header = ["ply", "format binary_little_endian 1.0", f"comment written by facecap; unit: {unit}"]
+    if texture_name is not None:
+        header.append(f"comment TextureFile {texture_name}")
+    header += [f"element vertex {n}", "property double x", "property double y", "property double z"]
     if vertex_uv is not None:
         header += ["property float s", "property float t"]
     if colors is not None:

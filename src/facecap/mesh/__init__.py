@@ -21,6 +21,8 @@ In the order a user meets them:
   per position across UV seams, as a :class:`WeldedMesh`.
 - :func:`laplace_operators` (``laplacian.py``): cotangent Laplacian and mixed
   Voronoi mass (Meyer et al. 2003), as :class:`LaplaceOperators`.
+- :func:`surface_colors`, :func:`texel_size_mm`, :func:`has_colors` (``surface_colors.py``): a
+  mesh's colour at points on it, from its texture or its vertex colours, and how fine a texture is.
 - :func:`median_edge_length` (``median_edge_length.py``): the median length of the
   triangles' sides, the scale a mesh is sampled at.
 - :func:`mean_curvature` (``mean_curvature.py``): per-vertex mean curvature
@@ -49,6 +51,7 @@ from .median_edge_length import median_edge_length
 from .nearest_on_polyline import nearest_on_polyline
 from .resample_polyline import ResampledPolyline, resample_polyline
 from .review_mesh import ReviewMesh, review_mesh
+from .surface_colors import has_colors, surface_colors, texel_size_mm
 from .uv_raster import UVRaster
 from .vertex_normals import face_normals, vertex_normals
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
@@ -56,6 +59,9 @@ from .duplicate_representatives import duplicate_representatives
 
 __all__ = [
     "UVRaster",
+    "surface_colors",
+    "texel_size_mm",
+    "has_colors",
     "check_mesh",
     "SpdFactor",
     "available_backends",

@@ -22,7 +22,7 @@ from pathlib import Path
 from ..cameras.calibrate_light import LightCalibration, LightCalibrationError, calibrate_light
 from ..cameras.camera import Camera
 from ..cameras.footage import open_footage
-from ..cameras.image_file import write_image
+from ..io.image_file import write_image
 from ..cameras.light_file import LightSetup, write_light_file
 from ..errors import FacecapWarning, InputError
 from ..io.atomic_write import check_file_destination

@@ -11,6 +11,7 @@ import numpy as np
 from ..mesh.factor_spd import Backend
 from ..errors import InputError
 from ..mesh.median_edge_length import median_edge_length
+from ..mesh.surface_colors import has_colors, surface_colors, texel_size_mm
 from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from ..typing import FloatArray
@@ -30,6 +31,7 @@ UNSEEN_ANCHOR = 1.0
 
 _SHADING_SIGMA_MM = 8.0  # colour variation wider than this is lighting and exposure, not skin: removed
 _STRONG_TEXTURE = 0.5  # local RMS of the normalised texture that earns full confidence
+_FINEST_PIXEL_MM = 0.15  # the flow's pixel on textured scans: no finer than this, whatever the texel
 
 
 class AlbedoAlignment(NamedTuple):
@@ -59,13 +61,15 @@ def _luminance(rgb: FloatArray) -> FloatArray:
 
 def _band(image: FloatArray, valid: np.ndarray, fine_px: float, coarse_px: float) -> FloatArray:
     """Normalised band-pass of ``image`` over its valid pixels: blurred at ``fine_px``, minus and divided by
-    its local mean and spread at ``coarse_px``, so that lighting, exposure and sampling density drop out."""
-    mask = valid.astype(np.float64)
+    its local mean and spread at ``coarse_px``, so that lighting, exposure and sampling density drop out.
+    In float32: a textured scan's image is up to 2048 pixels wide, and its blurs twice as fast so."""
+    mask = valid.astype(np.float32)
+    image = image.astype(np.float32)
 
     def blur(x: FloatArray, sigma: float) -> FloatArray:
         num = cv2.GaussianBlur(x * mask, (0, 0), sigma)
         den = cv2.GaussianBlur(mask, (0, 0), sigma)
-        return np.where(den > 1e-6, num / np.maximum(den, 1e-6), 0.0)
+        return np.where(den > 1e-6, num / np.maximum(den, 1e-6), np.float32(0.0))
 
     fine = blur(image, max(fine_px, 0.5))
     local_mean = blur(fine, coarse_px)
@@ -75,13 +79,14 @@ def _band(image: FloatArray, valid: np.ndarray, fine_px: float, coarse_px: float
     return np.where(valid, detail / (3.0 * np.maximum(spread, 0.25 * level) + 1e-12), 0.0)
 
 
-def _colour_at(points: FloatArray, tree: Any, mesh: Mesh, luma: FloatArray, reach_mm: float) -> tuple[FloatArray, np.ndarray]:
-    """Luma of ``mesh`` at its closest points to ``points`` (k, 3), and whether each lies within ``reach_mm``."""
+def _luma_at(points: FloatArray, tree: Any, mesh: Mesh, reach_mm: float) -> tuple[FloatArray, np.ndarray]:
+    """Luma of ``mesh``'s colour at its closest points to ``points`` (k, 3) (its texture, else its vertex
+    colours), and whether each lies within ``reach_mm``."""
     sq, tri, closest = tree.squared_distance(mesh.vertices, mesh.faces, points)
     corners = mesh.faces[tri]
     bary = igl.barycentric_coordinates(
         np.ascontiguousarray(closest), *(np.ascontiguousarray(mesh.vertices[corners[:, k]]) for k in range(3)))
-    return np.einsum("pk,pk->p", bary, luma[corners]), np.sqrt(sq) <= reach_mm
+    return _luminance(surface_colors(mesh, tri, bary).astype(np.float64)), np.sqrt(sq) <= reach_mm
 
 
 def align_albedo(
@@ -179,8 +184,8 @@ def align_albedo(
     if rest.shape != V0.shape or not np.all(np.isfinite(rest)):
         raise InputError(f"template_rest: expected finite ({V0.shape[0]}, 3) vertices, got {rest.shape}")
     for name, mesh in (("texture", texture), ("scan", scan)):
-        if not isinstance(mesh, Mesh) or mesh.vertex_colors is None:
-            raise InputError(f"{name}: expected a Mesh with vertex_colors (a textured scan)")
+        if not isinstance(mesh, Mesh) or not has_colors(mesh):
+            raise InputError(f"{name}: expected a Mesh with a texture or vertex_colors (a coloured scan)")
     if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)) or iterations < 0:
         raise InputError(f"iterations: expected an integer >= 0, got {iterations!r}")
     alpha = as_positive(alpha, name="alpha", allow_zero=True)
@@ -192,20 +197,26 @@ def align_albedo(
     first = np.full(Vw.shape[0], -1, dtype=np.int64)
     first[back[::-1]] = np.arange(back.size)[::-1]  # one original vertex per welded vertex
     rest_w = rest[first]
-    scan_luma = _luminance(np.asarray(scan.vertex_colors, dtype=np.float64))
-    texture_luma = _luminance(np.asarray(texture.vertex_colors, dtype=np.float64))
     texture_tree = igl.AABB()
     texture_tree.init(texture.vertices, texture.faces)
 
     edge = median_edge_length(Vw, Fw)
-    pix = 0.5 * edge if pixel_mm is None else as_positive(pixel_mm, name="pixel_mm")
+    # colour textures resolve the skin at their texel size; vertex colours at about the template's sampling
+    textured = scan.texture is not None and texture.texture is not None
+    if pixel_mm is not None:
+        pix = as_positive(pixel_mm, name="pixel_mm")
+    elif textured:
+        pix = max(texel_size_mm(scan), texel_size_mm(texture), _FINEST_PIXEL_MM)
+    else:
+        pix = 0.5 * edge
     normals = igl.per_vertex_normals(Vw, Fw)
     forward = np.nansum(normals, axis=0)
     probe = cylindrical_map(Vw, axis=axis, forward=forward, size_px=64, margin_px=2)
     extent_mm = max((probe.shape[1] - 5) / probe.px_per_mm, (probe.shape[0] - 5) / probe.px_per_mm)
     cmap = cylindrical_map(Vw, axis=axis, forward=forward, centre=probe.centre,
                            size_px=int(np.clip(np.ceil(extent_mm / pix), 64, 2048)), margin_px=4)
-    fine_px = 0.5 * cmap.px_per_mm  # colour below half a millimetre is noise at scan resolution
+    # per-vertex colour below half a millimetre is noise at scan resolution; a texture is sharp to a texel
+    fine_px = 1.0 if textured else 0.5 * cmap.px_per_mm
     coarse_px = _SHADING_SIGMA_MM * cmap.px_per_mm
 
     tree = igl.AABB()
@@ -223,12 +234,12 @@ def align_albedo(
         points, found = raster.surface_points(centres, V)
         points = np.where(found[:, None], points, 0.0)
         reach = max(snap, 2.0 * edge)
-        colour, near = _colour_at(points, tree, scan, scan_luma, reach)
+        colour, near = _luma_at(points, tree, scan, reach)
         # the same pixels on the template: its rest surface under them, coloured by its texture scan
         rest_points, _ = raster.surface_points(centres, rest_w)
         rest_points = np.where(found[:, None], rest_points, 0.0)
-        reference, textured = _colour_at(rest_points, texture_tree, texture, texture_luma, reach)
-        seen = found & near & textured
+        reference, on_texture = _luma_at(rest_points, texture_tree, texture, reach)
+        seen = found & near & on_texture
         source = np.zeros(covered.shape)
         target = np.zeros(covered.shape)
         valid = np.zeros(covered.shape, dtype=bool)

@@ -15,6 +15,7 @@ from .fit_bases_to_markers import fit_bases_to_markers
 from ..deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM
 from ..errors import FacecapWarning, InputError
 from ..markers.rigid_fit import rigid_fit
+from ..mesh.surface_colors import has_colors
 from ..structures import Mesh
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
 from .register_template_to_scan import register_template_to_scan
@@ -95,9 +96,9 @@ def _template_texture(texture: Mesh | None, tmpl_mocap: Mesh, template_markers: 
                       subspace: np.ndarray, marker_offset_mm: float, deformation_weight: float) -> Mesh | None:
     """The coloured surface of the template's expression in the mocap frame, or None without colours."""
     if texture is None:
-        return tmpl_mocap if tmpl_mocap.vertex_colors is not None else None
-    if texture.vertex_colors is None:
-        raise InputError("template_texture has no vertex colours", path=texture.source_path)
+        return tmpl_mocap if has_colors(tmpl_mocap) else None
+    if not has_colors(texture):
+        raise InputError("template_texture has no colour (no texture and no vertex colours)", path=texture.source_path)
     if template_markers is None:
         raise InputError("template_texture needs the template's markers (template_markers) to be placed")
     reg = register_markers_to_scan(template_markers, texture, subspace=subspace, marker_offset_mm=marker_offset_mm,
@@ -280,8 +281,9 @@ def register_scans(
         texture = _template_texture(template_texture, tmpl_mocap,
                                     None if template_markers is None else np.asarray(template_markers, dtype=np.float64),
                                     X, marker_offset_mm, template_deformation_weight)
-        if texture is None or any(s.vertex_colors is None for s in scans_mocap):
-            raise InputError("align_colors: the scans and the template (or template_texture) need vertex colours")
+        if texture is None or not all(has_colors(s) for s in scans_mocap):
+            raise InputError("align_colors: the scans and the template (or template_texture) need colour "
+                             "(a texture or vertex colours)")
 
         t = time.perf_counter()
         up = output_from_mocap[:3, :3].T @ np.array([0.0, 1.0, 0.0])

@@ -28,7 +28,10 @@ In the order a user meets them:
   way a range scanner would, as a :class:`ScannedExpression`.
 - :func:`skin_albedo`, :class:`SkinRegions`, :data:`BASE_SKIN_TONE`
   (``skin_albedo.py``): the skin's linear reflectance as a solid texture of
-  the material point; :func:`capture_colors` (``capture_colors.py``): what a
+  the material point; :func:`bake_skin_albedo`, :class:`SkinTexture`, :func:`textured_neutral`
+  (``skin_texture.py``): that albedo, pores included, baked once per identity into the rest
+  surface's UV atlas, which generated scans' textures and the textured neutral read;
+  :func:`capture_colors` (``capture_colors.py``): what a
   scanner's camera records of it (exposure, shading, noise, sRGB by
   :func:`facecap.cameras.linear_to_srgb`), for ``Mesh.vertex_colors``.
 - :func:`write_synthetic_case`, :func:`write_planned_scans`
@@ -84,8 +87,9 @@ from .marker_layout import animface_marker_map, boundary_vertices, choose_marker
 from .real_motion_curves import REAL_CURVE_NAMES, RealCurveFit, load_real_curve_fit, real_motion_curves
 from .rest_expression import RESTING_SHAPES, as_rest_weights, random_rest_expression
 from .rotational_jaw import ICT_JAW_SCREW, JAW_MODES, JawScrew, fit_jaw_screw, rotational_jaw_correction
-from .scan_expression import ScannedExpression, scan_expression
+from .scan_expression import DEFAULT_SCAN_TEXEL_MM, ScannedExpression, scan_expression
 from .skin_albedo import BASE_SKIN_TONE, SkinLayers, SkinRegions, band_noise, skin_albedo, skin_albedo_layers
+from .skin_texture import DEFAULT_ALBEDO_TEXELS, SkinTexture, bake_skin_albedo, textured_neutral
 from .smoothstep import smoothstep
 from .speech_curves import CONSONANT_VISEMES, VOWEL_VISEMES, speech_expression_curves
 from .write_synthetic_case import CaseFiles, correspondence_json, write_planned_scans, write_synthetic_case
@@ -109,6 +113,11 @@ from .write_detail_case import (DETAIL_EDGE_MM, DETAIL_VIDEO_EVERY, MARKER_ALBED
                                 write_detail_case)
 
 __all__ = [
+    "SkinTexture",
+    "DEFAULT_ALBEDO_TEXELS",
+    "DEFAULT_SCAN_TEXEL_MM",
+    "bake_skin_albedo",
+    "textured_neutral",
     "render_mirror_sphere",
     "MIRROR_SPHERE_DEFAULTS",
     "random_identity",

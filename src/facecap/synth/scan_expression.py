@@ -8,6 +8,7 @@ from typing import Any
 import igl
 import numpy as np
 import scipy.sparse as sp
+from scipy.ndimage import distance_transform_edt
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
@@ -19,8 +20,12 @@ from ..units import normalize_unit
 from ..validate import as_faces, as_positive, as_rigid_transform, as_vertices
 from .capture_colors import capture_colors
 from .skin_albedo import SkinRegions, skin_albedo
+from .skin_texture import SkinTexture
 
-__all__ = ["ScannedExpression", "scan_expression"]
+__all__ = ["ScannedExpression", "scan_expression", "DEFAULT_SCAN_TEXEL_MM"]
+
+DEFAULT_SCAN_TEXEL_MM = 0.25
+"""Texel spacing of a generated scan's colour texture (scanners deliver 0.1-0.5 mm)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -134,6 +139,57 @@ def _range_image(
     return hit, fid, bary, points, UU.shape
 
 
+def _scan_texture(
+    keep: IntArray,
+    grid_shape: tuple[int, int],
+    pitch: float,
+    texel_mm: float,
+    skin: SkinTexture,
+    capture_seed: int,
+    *,
+    V: FloatArray,
+    F: IntArray,
+    tree: Any,
+    d: FloatArray,
+    e1: FloatArray,
+    e2: FloatArray,
+    offset: FloatArray,
+    **_: Any,
+) -> tuple[np.ndarray, FloatArray]:
+    """The colour camera's texture over the range image's plane, and each kept vertex's UV in it."""
+    rows, cols = grid_shape
+    s = max(1, int(round(pitch / texel_mm)))
+    t = pitch / s
+    H, W = (rows - 1) * s + 1, (cols - 1) * s + 1
+    u0 = (V @ e1).min() + pitch * offset[0]
+    v0 = (V @ e2).min() + pitch * offset[1]
+    # only the texels of range-image cells with a kept vertex at a corner: the rest of the plane is not face
+    cell_near = np.zeros((rows + 1, cols + 1), dtype=bool)  # cell (i, j) at [i + 1, j + 1]
+    r, c = np.divmod(keep, cols)
+    for dr in (0, 1):
+        for dc in (0, 1):
+            cell_near[r - dr + 1, c - dc + 1] = True
+    ti, tj = np.nonzero(cell_near[np.arange(H) // s + 1][:, np.arange(W) // s + 1])
+    origins = (u0 + tj * t)[:, None] * e1 + (v0 + ti * t)[:, None] * e2 + ((V @ d).min() - 10.0) * d
+    hit_face, _, uv = tree.intersect_ray_first(V, F, origins, np.broadcast_to(d, origins.shape).copy())
+    hit = hit_face >= 0
+    fid = np.where(hit, hit_face, 0).astype(np.int64)
+    uv = np.clip(np.nan_to_num(uv), 0.0, 1.0)
+    bary = np.clip(np.stack([1.0 - uv[:, 0] - uv[:, 1], uv[:, 0], uv[:, 1]], axis=1), 0.0, None)
+    bary /= bary.sum(axis=1, keepdims=True)
+    points = np.einsum("kc,kcd->kd", bary[hit], V[F[fid[hit]]])
+    colour = capture_colors(skin.albedo_at(fid[hit], bary[hit]), points, seed=capture_seed)
+    image = np.zeros((H, W, 3), dtype=np.float32)
+    seen = np.zeros((H, W), dtype=bool)
+    image[ti[hit], tj[hit]] = colour
+    seen[ti[hit], tj[hit]] = True
+    # texels that see no skin take the nearest seen one's colour (a scanner's atlas is padded too)
+    _, (ni, nj) = distance_transform_edt(~seen, return_indices=True)
+    image = image[ni, nj]
+    uvs = np.stack([(c * s + 0.5) / W, 1.0 - (r * s + 0.5) / H], axis=1)
+    return np.round(image * 255.0).astype(np.uint8), uvs
+
+
 def scan_expression(
     vertices: FloatArray,
     faces: IntArray,
@@ -151,6 +207,8 @@ def scan_expression(
     material_points: FloatArray | None = None,
     albedo_seed: int = 0,
     skin_regions: SkinRegions | None = None,
+    skin_texture: SkinTexture | None = None,
+    texel_mm: float = DEFAULT_SCAN_TEXEL_MM,
 ) -> ScannedExpression:
     """Scan a triangle mesh as a range scanner would: new sampling, noise, holes, rim crop, own frame.
 
@@ -220,6 +278,19 @@ def scan_expression(
         ``vertices`` (a scan vertex takes the label of its source triangle's
         corner of largest barycentric weight) and ``lip_outline`` in the
         frame of ``material_points``. Only used with ``material_points``.
+    skin_texture : SkinTexture or None, optional
+        The identity's albedo baked on its rest surface
+        (:func:`~facecap.synth.skin_texture.bake_skin_albedo`), whose triangles are ``faces``.
+        When given, the scan carries a colour texture as a range scanner's colour camera records
+        it, instead of vertex colours: a second, finer grid of rays (``texel_mm`` apart, an integer
+        fraction of the range grid's pitch) over the same image plane, each hit coloured by the
+        albedo at its material point with this capture's exposure, shading and sensor noise
+        (:func:`~facecap.synth.capture_colors.capture_colors`), sRGB-encoded to 8 bits; texels that
+        see no skin take the nearest one's colour. The scan's UVs are its range image's
+        coordinates: an atlas of its own, unrelated to the rest surface's. Overrides
+        ``material_points``.
+    texel_mm : float, default 0.25
+        Texel spacing of ``skin_texture``'s scan texture (real scanners: 0.1-0.5 mm).
 
     Returns
     -------
@@ -385,7 +456,12 @@ def scan_expression(
     else:
         X = as_rigid_transform(scanner_from_face, name="scanner_from_face")
     colors = None
-    if material_points is not None:
+    texture = scan_uvs = None
+    if skin_texture is not None:
+        capture_seed = int(seeds[4].generate_state(1)[0])
+        texture, scan_uvs = _scan_texture(
+            keep, grid_shape, pitch, as_positive(texel_mm, name="texel_mm"), skin_texture, capture_seed, **shoot)
+    elif material_points is not None:
         src, w = fid[keep], bary[keep]
         mat = np.einsum("kc,kcd->kd", w, M[F[src]])
         region = None
@@ -401,7 +477,8 @@ def scan_expression(
         colors = capture_colors(skin_albedo(mat, seed=albedo_seed, region=region), surface,
                                 seed=capture_seed)
     mesh = Mesh(noisy @ X[:3, :3].T + X[:3, 3], faces_out, source_unit=unit, source_path="<scanned>",
-                vertex_colors=colors)
+                vertex_colors=colors, uvs=scan_uvs, uv_indices=None if scan_uvs is None else faces_out.ravel(),
+                texture=texture)
     return ScannedExpression(
         mesh=mesh,
         scanner_from_face=X,

@@ -17,6 +17,7 @@ from .generate_performance import SyntheticCase
 from .capture_colors import capture_colors
 from .scan_expression import scan_expression
 from .skin_albedo import SkinRegions, skin_albedo
+from .skin_texture import SkinTexture
 
 __all__ = ["write_synthetic_case", "write_planned_scans", "correspondence_json", "CaseFiles"]
 
@@ -134,6 +135,7 @@ def write_planned_scans(
     colors: bool = False,
     albedo_seed: int = 0,
     skin_regions: SkinRegions | None = None,
+    skin_texture: SkinTexture | None = None,
 ) -> list[Path]:
     """Scan the true expression of each planned frame and write it, as a scanning session of the plan would.
 
@@ -152,6 +154,11 @@ def write_planned_scans(
     ``material_points``; each scan has its own exposure, shading and noise.
     Default False: the scans are what they were without this option.
 
+    With ``skin_texture`` (the identity's albedo baked on ``case.scan`` by
+    :func:`~facecap.synth.skin_texture.bake_skin_albedo`) each scan carries a colour texture
+    instead, at 0.25 mm a texel in an atlas of its own (its range image), written beside it
+    (``<name>_color.png``, and ``<name>.mtl`` for OBJ), as scanners deliver it.
+
     Returns
     -------
     list of Path
@@ -160,8 +167,10 @@ def write_planned_scans(
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     for i, f in enumerate(frames):
-        extra = dict(material_points=case.scan.vertices, albedo_seed=albedo_seed,
-                     skin_regions=skin_regions) if colors else {}
+        extra: dict = dict(material_points=case.scan.vertices, albedo_seed=albedo_seed,
+                           skin_regions=skin_regions) if colors else {}
+        if skin_texture is not None:
+            extra = dict(skin_texture=skin_texture)
         scanned = scan_expression(case.truth_vertices[int(f)], case.scan.faces, seed=first_seed + i,
                                   target_vertices=target_vertices, **extra)
         paths.append(out / f"scan_{i:02d}_frame_{int(f):04d}.{file_format}")

@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import FileFormatError, InputError
-from ..io.atomic_write import atomic_path
+from .atomic_write import atomic_path
 
 __all__ = ["read_image", "write_image", "IMAGE_SUFFIXES"]
 
