@@ -110,7 +110,7 @@ def _basis_errors(synthetic, bases_dir: Path, blend_dir: Path, truth_path: Path,
 
 
 def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: int = 30, colors: bool = False,
-             textured: bool = False) -> dict:
+             textured: bool = False, reperformance: float = 0.0) -> dict:
     sample = load_ict_sample()
     synthetic = make_case(case, n_frames=frames)
     files = write_synthetic_case(synthetic, root / "inputs", region_labels=sample.region_labels,
@@ -144,9 +144,9 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
         template = root / "inputs" / "neutral_textured.obj"
         write_mesh(textured_neutral(synthetic.scan, skin, seed=case.scan_seed + 1000), template)
         colour = dict(skin_texture=skin, file_format="obj")
-        texture = ["--color-alignment"]
+        texture = []  # the default (auto) aligns by colour when every scan and the template are textured
     scans = [str(p) for p in scan_case(case, synthetic, planned, root / "scans", target_vertices=scan_vertices,
-                                       **colour)]
+                                       reperformance=reperformance, **colour)]
     t = time.perf_counter()
     assert main([*cli, "register-scans", "--plan", str(root / "plan.json"), "--markers", str(files.markers),
                  "--scans", *scans, "--template", str(template), *texture, "--out", str(root / "bases")]) == 0
@@ -165,6 +165,7 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
         "case": case.name, "held_out": case.held_out, "tolerance": case.tolerance, "scans": len(planned),
         "colors": colors,
         "textured": textured,
+        "reperformance": reperformance,
         **{f"{k}_mm": v for k, v in errors.items()},
         "ratio": errors["blend"] / baseline,
         "stabilization_deg": {"median": float(np.median(stab_deg)), "p95": float(np.percentile(stab_deg, 95)),
@@ -188,6 +189,9 @@ def main_bench() -> None:
                         help="coloured scans, a coloured neutral scan as --template-texture, --color-alignment")
     parser.add_argument("--textured", action="store_true",
                         help="scans with colour textures (0.25 mm, pores), a textured neutral template, --color-alignment")
+    parser.add_argument("--reperformance", type=float, default=0.0,
+                        help="each scan is the frame's expression performed again: blendshape weights w -> "
+                             "w + R (w n1 + 0.1 n2) (write_planned_scans); 0: the frame itself")
     parser.add_argument("--keep", help="keep each case's folder under this directory")
     args = parser.parse_args()
     cases = chosen_cases(args)
@@ -198,12 +202,12 @@ def main_bench() -> None:
             root.mkdir(parents=True, exist_ok=True)
             row = run_case(case, root, frames=args.frames, scan_vertices=args.scan_vertices,
                            max_scans=args.max_scans, colors=args.colors,
-                           textured=args.textured)
+                           textured=args.textured, reperformance=args.reperformance)
         else:
             with tempfile.TemporaryDirectory(prefix="facecap_scan_accuracy_") as tmp:
                 row = run_case(case, Path(tmp), frames=args.frames, scan_vertices=args.scan_vertices,
                                max_scans=args.max_scans, colors=args.colors,
-                           textured=args.textured)
+                           textured=args.textured, reperformance=args.reperformance)
         rows.append(row)
         print("RESULT", json.dumps(row), flush=True)
     print("| case | held out | scans | stabilisation deg (median / max) | animate auto / off | blend | ratio (bar 0.5) "

@@ -255,6 +255,11 @@ def _cmd_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def _colour_alignment(choice: str) -> bool | None:
+    """``--color-alignment`` as the jobs take it: None (auto), True or False."""
+    return {"auto": None, "on": True, "off": False}[choice]
+
+
 def _formats_read(kind: str) -> str:
     """The formats facecap reads for one kind of file, as help text, from the reader's own list.
 
@@ -477,9 +482,10 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
                    help="a coloured scan of the template's expression (e.g. the neutral's own scan), in the "
                         "template's units: the skin colour the scans are aligned to (default: the template's own "
                         f"texture or vertex colours); {_formats_read('mesh')}")
-    p.add_argument("--color-alignment", action="store_true",
-                   help="slide the registrations along the scans until the skin colours match the template's "
-                        "(scans and template or --template-texture with a colour texture or vertex colours)")
+    p.add_argument("--color-alignment", nargs="?", const="on", default="auto", choices=("auto", "on", "off"),
+                   help="slide the registrations along the scans until the skin colours match the template's: "
+                        "auto (on when every scan and the template or --template-texture have a colour texture), "
+                        "on (vertex colours too), off [auto]")
     p.add_argument("--refine", action="store_true",
                    help="run the fine-scale (optical flow) registration of section 6.2 (experimental)")
     p.add_argument("--out", required=True, help="bases folder")
@@ -507,7 +513,8 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--marker-offset", type=float, default=1.5)
     p.add_argument("--template-texture", default=None,
                    help=f"coloured scan of the template's expression: {_formats_read('mesh')}")
-    p.add_argument("--color-alignment", action="store_true", help="slide by skin colour (experimental)")
+    p.add_argument("--color-alignment", nargs="?", const="on", default="auto", choices=("auto", "on", "off"),
+                   help="slide by skin colour: auto (when the scans and template have colour textures), on, off [auto]")
     p.add_argument("--refine", action="store_true", help="fine-scale registration (experimental)")
     _add_output_options(p)
     p.add_argument("--out", required=True, help="output folder (holds plan.json, bases/, animation/)")
@@ -537,7 +544,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
                                     scan_unit=args.scan_units, template_unit=args.template_units,
                                     marker_offset_mm=args.marker_offset, refine=args.refine,
                                     template_texture_path=args.template_texture,
-                                    align_colors=args.color_alignment,
+                                    align_colors=_colour_alignment(args.color_alignment),
                                     progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:
         reg = report["registration_mm"]
@@ -565,8 +572,8 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
     report = run_scan_workflow(args.markers, args.scans, args.out, plan_path=args.plan, tolerance=args.tolerance,
                                scan_unit=args.scan_units, template_path=args.template,
                                template_unit=args.template_units, marker_offset_mm=args.marker_offset,
-                               template_texture_path=args.template_texture, align_colors=args.color_alignment,
-                               refine=args.refine, **_output_options(args), progress=not args.quiet,
+                               template_texture_path=args.template_texture,
+                               align_colors=_colour_alignment(args.color_alignment), refine=args.refine, **_output_options(args), progress=not args.quiet,
                                overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {Path(args.out)}: plan.json, bases/, animation/ ({report['n_frames']} frames)")

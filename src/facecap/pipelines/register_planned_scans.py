@@ -38,7 +38,7 @@ def register_planned_scans(
     marker_offset_mm: float = 1.5,
     refine: bool = False,
     template_texture_path: str | Path | None = None,
-    align_colors: bool = False,
+    align_colors: bool | None = None,
     marker_unit: str | None = None,
     progress: bool = True,
     overwrite: bool = False,
@@ -48,8 +48,11 @@ def register_planned_scans(
     With ``align_colors`` the registrations are slid along the scans until
     the skin's colours match the template's (the scans and the template, or
     ``template_texture_path``, a coloured scan of the template's expression
-    in the template's unit, need vertex colours), see
-    :func:`facecap.registration.register_scans`.
+    in the template's unit, need a colour texture or vertex colours), see
+    :func:`facecap.registration.register_scans`. None (default): on when every
+    scan and the template (or its texture) carry a colour texture, which
+    resolves the skin finely enough to follow it; per-vertex colour alone did
+    not help on generated scans, so it is used only when asked for.
 
     ``scan_unit`` and ``template_unit`` are length units, or ``'auto'``: each
     file's size is compared with its frame's markers
@@ -85,6 +88,13 @@ def register_planned_scans(
         if template is None:
             raise InputError("--template-texture needs --template (without one the first scan is the template)")
         texture = read_mesh(template_texture_path, unit=template.source_unit)
+    if align_colors is None:
+        colour_source = texture if texture is not None else (template if template is not None else scans[0])
+        align_colors = all(s.texture is not None for s in scans) and colour_source.texture is not None
+        why = ("every scan and the template have a colour texture" if align_colors
+               else "the scans or the template have no colour texture")
+    else:
+        why = "asked for" if align_colors else "turned off"
     t = time.perf_counter()
     registered = register_scans(
         scans, conditioned.positions[frames], template=template,
@@ -92,7 +102,8 @@ def register_planned_scans(
         marker_offset_mm=marker_offset_mm, refine=refine, template_texture=texture, align_colors=align_colors,
         progress=progress,
     )
-    report = {**registered.report, "total_s": time.perf_counter() - t,
+    report = {**registered.report, "colour_alignment": f"{'on' if align_colors else 'off'} ({why})",
+              "total_s": time.perf_counter() - t,
               "registration_mm": registered.registration_mm.tolist()}
     for entry, path in zip(report.get("scans", []), scan_paths):
         entry["scan"] = recorded_path(path, folder=out_dir)

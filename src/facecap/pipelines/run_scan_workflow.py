@@ -34,7 +34,7 @@ def run_scan_workflow(
     template_unit: str = "mm",
     marker_offset_mm: float = 1.5,
     template_texture_path: str | Path | None = None,
-    align_colors: bool = False,
+    align_colors: bool | None = None,
     refine: bool = False,
     exports: Sequence[str] = (),
     write_vertices: bool = True,

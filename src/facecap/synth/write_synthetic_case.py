@@ -11,6 +11,7 @@ import numpy as np
 
 from ..io.atomic_write import atomic_path, atomic_write_text
 from ..io.write_markers import write_markers
+from ..io.ict_sample import load_ict_sample
 from ..io.write_mesh import write_mesh
 from ..units import mm_per_unit
 from .generate_performance import SyntheticCase
@@ -136,6 +137,7 @@ def write_planned_scans(
     albedo_seed: int = 0,
     skin_regions: SkinRegions | None = None,
     skin_texture: SkinTexture | None = None,
+    reperformance: float = 0.0,
 ) -> list[Path]:
     """Scan the true expression of each planned frame and write it, as a scanning session of the plan would.
 
@@ -159,6 +161,12 @@ def write_planned_scans(
     instead, at 0.25 mm a texel in an atlas of its own (its range image), written beside it
     (``<name>_color.png``, and ``<name>.mtl`` for OBJ), as scanners deliver it.
 
+    ``reperformance`` > 0 scans what an actor gives when asked to hold the frame's expression
+    again, not the frame itself (Huang et al.'s premise, and the reason for their section 7): each
+    blendshape weight ``w`` of the frame becomes ``w + reperformance * (w n1 + 0.1 n2)`` (``n1, n2``
+    standard normal per shape and scan, from the scan's seed), clipped to [0, 1], added through the
+    ICT expression shapes. 0 (default): the frame's own expression.
+
     Returns
     -------
     list of Path
@@ -171,7 +179,13 @@ def write_planned_scans(
                            skin_regions=skin_regions) if colors else {}
         if skin_texture is not None:
             extra = dict(skin_texture=skin_texture)
-        scanned = scan_expression(case.truth_vertices[int(f)], case.scan.faces, seed=first_seed + i,
+        expression = case.truth_vertices[int(f)].astype(np.float64)
+        if reperformance > 0:
+            rng = np.random.default_rng(np.random.SeedSequence([first_seed + i, 0x2E9F]))
+            w = case.weights[int(f)]
+            again = np.clip(w + reperformance * (w * rng.normal(size=w.shape) + 0.1 * rng.normal(size=w.shape)), 0, 1)
+            expression = expression + np.tensordot(again - w, load_ict_sample().expression_deltas, axes=1)
+        scanned = scan_expression(expression, case.scan.faces, seed=first_seed + i,
                                   target_vertices=target_vertices, **extra)
         paths.append(out / f"scan_{i:02d}_frame_{int(f):04d}.{file_format}")
         write_mesh(scanned.mesh, paths[-1])
