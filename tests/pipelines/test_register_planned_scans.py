@@ -20,3 +20,26 @@ def test_bad_inputs_are_clear_errors(scan_workflow, capsys):
                  "--out", str(root / "x")]) == 2
     assert "units" in capsys.readouterr().err
     assert not (root / "x").exists()
+
+
+def test_colour_alignment_is_chosen_when_every_scan_and_the_template_show_the_skin():
+    import numpy as np
+
+    from facecap.pipelines import colour_alignment_choice
+    from facecap.structures import Mesh
+
+    V = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0]])
+    F = np.array([[0, 1, 2]])
+    uv = dict(uvs=V[:, :2], uv_indices=F.ravel())
+    textured = Mesh(V, F, texture=np.zeros((2, 2, 3), np.uint8), **uv)
+    coloured = Mesh(V, F, vertex_colors=np.zeros((3, 3)))
+    bare = Mesh(V, F)
+    assert colour_alignment_choice(None, [textured, textured], textured, None)[0] is True
+    assert colour_alignment_choice(None, [textured, textured], None, None)[0] is True  # the first scan is the template
+    assert colour_alignment_choice(None, [textured], bare, textured)[0] is True  # --template-texture
+    assert colour_alignment_choice(None, [textured, coloured], textured, None)[0] is False
+    assert colour_alignment_choice(None, [textured], bare, None)[0] is False
+    assert colour_alignment_choice(None, [coloured], coloured, None) == (False, "the scans or the template have no "
+                                                                        "colour texture")
+    assert colour_alignment_choice(True, [coloured], coloured, None) == (True, "asked for")
+    assert colour_alignment_choice(False, [textured], textured, None) == (False, "turned off")

@@ -120,7 +120,7 @@ def test_register_scans_slides_the_bases_by_colour_when_asked():
                        align_colors=True, **common)
 
 
-def _fine_skin(face) -> "SkinTexture":
+def _fine_skin(face):
     """Skin-like detail at 0.3-3 mm in the face's own atlas (octaves of blurred noise), not the package's skin."""
     import cv2
 

@@ -78,7 +78,7 @@ _PUBLIC = {
     "capture_wrinkles": ("capture_wrinkles", "WrinkleCapture"),
     "capture_detail": ("capture_detail", "DetailCapture", "write_detail_frame_maps"),
     "plan_scans": ("plan_scans", "conditioned_take_path"),
-    "register_planned_scans": ("register_planned_scans",),
+    "register_planned_scans": ("register_planned_scans", "colour_alignment_choice"),
     "blend_take": ("blend_take",),
     "replay_conditioning": ("replay_conditioning",),
     "write_blended_performance": ("write_blended_performance",),

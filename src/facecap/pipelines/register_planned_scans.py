@@ -23,7 +23,19 @@ from ..structures import Mesh
 from .plan_scans import conditioned_take_path
 from .replay_conditioning import replay_conditioning
 
-__all__ = ["register_planned_scans"]
+__all__ = ["register_planned_scans", "colour_alignment_choice"]
+
+
+def colour_alignment_choice(asked: bool | None, scans: Sequence[Mesh], template: Mesh | None,
+                            texture: Mesh | None) -> tuple[bool, str]:
+    """Whether to align by colour, and why: ``asked`` if given, else when every scan and the colour
+    source (``texture``, else ``template``, else the first scan, the template then) have a texture."""
+    if asked is not None:
+        return asked, "asked for" if asked else "turned off"
+    source = texture if texture is not None else (template if template is not None else scans[0])
+    if all(s.texture is not None for s in scans) and source.texture is not None:
+        return True, "every scan and the template have a colour texture"
+    return False, "the scans or the template have no colour texture"
 
 
 def register_planned_scans(
@@ -88,13 +100,7 @@ def register_planned_scans(
         if template is None:
             raise InputError("--template-texture needs --template (without one the first scan is the template)")
         texture = read_mesh(template_texture_path, unit=template.source_unit)
-    if align_colors is None:
-        colour_source = texture if texture is not None else (template if template is not None else scans[0])
-        align_colors = all(s.texture is not None for s in scans) and colour_source.texture is not None
-        why = ("every scan and the template have a colour texture" if align_colors
-               else "the scans or the template have no colour texture")
-    else:
-        why = "asked for" if align_colors else "turned off"
+    align_colors, why = colour_alignment_choice(align_colors, scans, template, texture)
     t = time.perf_counter()
     registered = register_scans(
         scans, conditioned.positions[frames], template=template,
