@@ -126,3 +126,20 @@ def test_gltf_base_colour_textures_are_read_as_trimesh_reads_them(tmp_path):
     theirs = trimesh.load(path, process=False, force="mesh")
     reference = trimesh.visual.color.uv_to_color(uv, theirs.visual.material.baseColorTexture)[:, :3] / 255.0
     assert np.allclose(surface_colors(mesh, tri, bary), reference, atol=1e-6)
+
+
+def test_a_textured_sequence_shares_one_image(tmp_path):
+    from facecap.io import PerformanceWriter
+
+    image = _image(4, 4, seed=6)
+    mesh = Mesh(_SQUARE_V, _SQUARE_F, uvs=_SQUARE_UV, uv_indices=_SQUARE_F.ravel(), texture=image)
+    frames = np.stack([_SQUARE_V + k for k in range(3)]).astype(np.float32)
+    with PerformanceWriter(tmp_path / "result", mesh=mesh, rate=30.0, n_frames=3, exports=("obj", "ply")) as writer:
+        writer.write_frames(0, frames)
+        writer.finish({})
+    for fmt in ("obj", "ply"):
+        folder = tmp_path / "result" / fmt
+        assert sorted(p.name for p in folder.glob("*.png")) == ["texture_color.png"]
+        for k in range(3):
+            back = read_mesh(folder / f"frame_{k:06d}.{fmt}")
+            assert np.array_equal(back.texture, image) and np.allclose(back.vertices, frames[k])

@@ -41,7 +41,7 @@ In the order a user meets them:
   archive (the optional alembic3d is imported only when one is written, by
   :func:`import_alembic`). The checks these streamed writers share are in
   ``frame_blocks.py`` (:func:`check_frame_blocks`, :func:`as_frame_count`,
-  :func:`path_with_suffix`); :func:`check_uvs` (``write_mesh.py``) checks the UVs
+  :func:`path_with_suffix`); :func:`check_uvs` (``write_mesh.py``) checks the UVs (and :func:`write_texture_files` writes a texture with its MTL)
   a mesh writer writes.
 - :func:`write_detail_maps`, :func:`write_maps_index` (``write_detail_maps.py``): the detail's
   per-video-frame displacement (EXR, mm) and normal maps (16-bit PNG) and ``maps/maps.json``.
@@ -92,7 +92,7 @@ from .registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, read_reg
 from .scan_plan import PLAN_FORMAT, read_scan_plan, write_scan_plan
 from .write_markers import write_markers
 from .write_detail_maps import MAPS_FOLDER, MAPS_INDEX, detail_map_names, write_detail_maps, write_maps_index
-from .write_mesh import check_uvs, write_mesh
+from .write_mesh import check_uvs, write_mesh, write_texture_files
 from .result_layout import (
     EXPORT_FORMATS,
     EXPORT_FRAMES,
@@ -170,6 +170,7 @@ __all__ = [
     "as_frame_count",
     "path_with_suffix",
     "check_uvs",
+    "write_texture_files",
     "triangle_corners",
     "check_frame_range",
     "STREAMED_FORMATS",

@@ -16,7 +16,7 @@ from ..validate import as_vertices
 from .atomic_write import atomic_path, atomic_write_text
 from .image_file import write_image
 
-__all__ = ["write_mesh", "check_uvs"]
+__all__ = ["write_mesh", "check_uvs", "write_texture_files"]
 
 _UV_DECIMALS = 9
 _COLOR_DECIMALS = 6
@@ -30,6 +30,7 @@ def write_mesh(
     vertices: FloatArray | None = None,
     unit: str | None = None,
     decimals: int | None = None,
+    shared_texture: str | None = None,
 ) -> Path:
     """Write a mesh to ``.obj`` or binary ``.ply``, keeping vertex order, polygons and UVs.
 
@@ -56,6 +57,10 @@ def write_mesh(
         ``unit``. Default None: enough for a resolution of 1e-6 mm (6 for
         mm, 7 for cm, 8 for inches, 9 for m). UVs always get 9 decimals.
         Trailing zeros are not written. PLY stores float64 positions exactly.
+    shared_texture : str or None, optional
+        For a sequence of frames: the name ``NAME`` of texture files already written beside
+        ``path`` by :func:`write_texture_files` (``NAME_color.png``, ``NAME.mtl``), which the file
+        refers to instead of writing its own. Default None: a textured mesh writes its own.
 
     Returns
     -------
@@ -131,10 +136,12 @@ def write_mesh(
     if has_uv:
         check_uvs(mesh.uvs, mesh.uv_indices, corners.size)  # type: ignore[arg-type]
     # the texture first, each file complete before the mesh that names it appears
-    texture_name = None
+    texture_name = material_name = None
     if mesh.texture is not None and has_uv:
-        texture_name = f"{p.stem}_color.png"
-        write_image(p.with_name(texture_name), mesh.texture)
+        stem = p.stem if shared_texture is None else shared_texture
+        if shared_texture is None:
+            write_texture_files(mesh, p.parent, stem)
+        texture_name, material_name = f"{stem}_color.png", f"{stem}.mtl"
 
     if suffix == ".obj":
         if decimals is None:
@@ -146,11 +153,8 @@ def write_mesh(
             V, sizes, corners,
             mesh.uvs if has_uv else None, mesh.uv_indices if has_uv else None,
             int(decimals), unit, mesh.vertex_colors,
-            None if texture_name is None else f"{p.stem}.mtl",
+            material_name,
         )
-        if texture_name is not None:
-            atomic_write_text(p.with_suffix(".mtl"), f"# written by facecap\nnewmtl {_MATERIAL}\n"
-                              f"Ka 0 0 0\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd {texture_name}\n")
     else:
         payload = _ply_bytes(
             V, sizes, corners,
@@ -161,6 +165,20 @@ def write_mesh(
         with open(tmp, "wb") as fh:
             fh.write(payload)
     return p
+
+
+def write_texture_files(mesh: Mesh, folder: str | os.PathLike[str], name: str) -> None:
+    """Write ``mesh.texture`` as ``NAME_color.png`` and the MTL that names it, ``NAME.mtl``, in ``folder``.
+
+    What a textured OBJ or PLY written by :func:`write_mesh` refers to (written by it, or once for a
+    sequence of frames that share it through ``shared_texture``). 8- or 16-bit PNG, as held.
+    """
+    if mesh.texture is None:
+        raise InputError("mesh: it has no texture to write")
+    folder = Path(os.fspath(folder))
+    write_image(folder / f"{name}_color.png", mesh.texture)
+    atomic_write_text(folder / f"{name}.mtl", f"# written by facecap\nnewmtl {_MATERIAL}\n"
+                      f"Ka 0 0 0\nKd 1 1 1\nKs 0 0 0\nillum 1\nmap_Kd {name}_color.png\n")
 
 
 def check_uvs(uvs: FloatArray, uv_indices: IntArray, n_corners: int) -> None:

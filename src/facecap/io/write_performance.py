@@ -242,11 +242,20 @@ class PerformanceWriter:
         if "obj" in self.exports or "ply" in self.exports:
             from .write_mesh import write_mesh
 
+            shared = None
+            if self.mesh.texture is not None and self.mesh.uvs is not None:
+                shared = "texture"  # one image and MTL per folder, not one per frame
+                if start == 0:
+                    from .write_mesh import write_texture_files
+
+                    for fmt in ("obj", "ply"):
+                        if fmt in self.exports:
+                            write_texture_files(self.mesh, self.staging / fmt, shared)
             for k in range(block.shape[0]):
                 for fmt in ("obj", "ply"):
                     if fmt in self.exports:
                         frame_path = self.staging / fmt / f"frame_{start + k:06d}.{fmt}"
-                        write_mesh(self.mesh, frame_path, vertices=block_mm[k])
+                        write_mesh(self.mesh, frame_path, vertices=block_mm[k], shared_texture=shared)
         self._frames_written += block_mm.shape[0]
 
     def stream(
