@@ -284,6 +284,9 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--frame", choices=("auto", "world", "stabilized"), default="auto",
                    help="compare a stabilised result in the world (moved by its head motion) or as the "
                         "stabilised face against the expression-only truth [auto: world when head_motion.npy exists]")
+    p.add_argument("--region", default=None,
+                   help="evaluate only these vertices (e.g. the part of the face the scans saw): a .npy bool mask "
+                        "or a JSON list of vertex indices [all]")
     p.add_argument("--json", action="store_true", help="print JSON instead of text")
     p.set_defaults(func=_cmd_evaluate)
 
@@ -291,7 +294,13 @@ def _add_evaluate(sub: argparse._SubParsersAction) -> None:
 def _cmd_evaluate(args: argparse.Namespace) -> int:
     from .report.evaluate_result import evaluate_result
 
-    error = evaluate_result(args.truth, args.result, frame=args.frame)
+    mask = None
+    if args.region is not None:
+        from .io.read_region_mask import read_region_mask
+        from .io.read_result import read_result
+
+        mask = read_region_mask(args.region, read_result(args.result).n_vertices)
+    error = evaluate_result(args.truth, args.result, frame=args.frame, vertex_mask=mask)
     summary = error.to_dict()
     summary.pop("per_frame_mean_mm", None)
     summary.pop("per_frame_max_mm", None)
@@ -304,6 +313,9 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         f"(mean {summary['mean_pct']:.3f}%, p95 {summary['p95_pct']:.3f}%, max {summary['max_pct']:.3f}% "
         f"of the {summary['diagonal_mm']:.1f} mm bounding-box diagonal)"
     )
+    if summary.get("across_mean_mm") is not None:
+        print(f"  across the skin (along the truth's normals) {summary['across_mean_mm']:.3f} mm, "
+              f"along it {summary['along_mean_mm']:.3f} mm (means of each error's two parts)")
     for name, region in (summary.get("regions") or {}).items():
         print(f"  {name:>12}: mean {region['mean_mm']:.3f} mm, p95 {region['p95_mm']:.3f} mm, max {region['max_mm']:.3f} mm")
     return 0

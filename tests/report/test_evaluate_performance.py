@@ -129,3 +129,20 @@ def test_nan_names_the_array_and_frame():
     R[2, 3, 1] = np.nan
     with pytest.raises(InputError, match="result_vertices.*frame 2, vertex 3"):
         evaluate_performance(R, G)
+
+
+def test_errors_split_across_and_along_the_skin():
+    # a flat sheet (normals +z): an error of 0.3 mm in x and 0.4 mm in z is 0.4 across and 0.3 along
+    xs, ys = np.meshgrid(np.arange(5.0), np.arange(4.0))
+    V = np.stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)], axis=1)
+    idx = np.arange(xs.size).reshape(xs.shape)
+    F = np.concatenate([np.stack([idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, 1:].ravel()], 1),
+                        np.stack([idx[:-1, :-1].ravel(), idx[1:, 1:].ravel(), idx[1:, :-1].ravel()], 1)])
+    truth = np.stack([V, V + [0.0, 0.0, 0.0]])
+    result = truth + np.array([0.3, 0.0, 0.4])
+    out = evaluate_performance(result, truth, faces=F)
+    assert out.mean_mm == pytest.approx(0.5)
+    assert out.across_mean_mm == pytest.approx(0.4) and out.along_mean_mm == pytest.approx(0.3)
+    masked = evaluate_performance(result, truth, faces=F, vertex_mask=np.arange(V.shape[0]) < 5)
+    assert masked.across_mean_mm == pytest.approx(0.4) and masked.n_vertices == 5
+    assert evaluate_performance(result, truth).across_mean_mm is None

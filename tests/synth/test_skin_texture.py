@@ -18,14 +18,14 @@ def face():
 
 
 def test_the_baked_albedo_is_the_skin_at_each_material_point(face):
-    skin = bake_skin_albedo(face, seed=4, size=512, pores=False)
+    skin = bake_skin_albedo(face, seed=4, size=384, pores=False)
     # at each vertex (a triangle corner), the lookup against the solid texture evaluated there
     tri = np.repeat(np.arange(face.n_faces), 3)
     bary = np.tile(np.eye(3), (face.n_faces, 1))
     looked_up = skin.albedo_at(tri, bary)
-    truth = skin_albedo(face.vertices[face.faces.ravel()], seed=4)
+    truth = skin_albedo(face.vertices, seed=4)[face.faces.ravel()]
     error = np.abs(looked_up - truth).max(axis=1)
-    # 0.58 mm texels: the smooth skin within a few per cent of its value, freckle edges aside
+    # 0.77 mm texels: the smooth skin within a few per cent of its value, freckle edges aside
     assert np.median(error) < 0.005 and np.percentile(error, 90) < 0.02, (np.median(error), np.percentile(error, 90))
 
 

@@ -46,11 +46,18 @@ class AlbedoAlignment(NamedTuple):
     confidence : (n,) float64 array
         Texture strength under each vertex in the last round, in [0, 1]
         (0 where the vertex could not be moved: the scan does not see it).
+    mismatch_by_round : list of float
+        The mean absolute difference of the two normalised (band-passed) images over the pixels
+        both see, at the start of each round: the first is the registration's before any slide,
+        the later ones after each round's update. Measured on a textured face at 0.3 mm pixels:
+        0.077 for the right correspondence, 0.103 with a slide of up to 1.5 mm over the forehead
+        (0.078 after one round), 0.37 against an unrelated texture.
     """
 
     vertices: FloatArray
     moved_mm: FloatArray
     confidence: FloatArray
+    mismatch_by_round: list[float]
 
 
 def _luminance(rgb: FloatArray) -> FloatArray:
@@ -225,6 +232,7 @@ def align_albedo(
 
     V = Vw.copy()
     confidence = np.zeros(V.shape[0])
+    mismatch: list[float] = []
     for _ in range(iterations):
         pixels = cmap.project(V)
         raster = cmap.rasterise(Fw, pixels=pixels)
@@ -248,6 +256,7 @@ def align_albedo(
         valid[rows, cols] = seen
         src = _band(source, valid, fine_px, coarse_px)
         tgt = _band(target, valid, fine_px, coarse_px)
+        mismatch.append(float(np.abs(src - tgt)[valid].mean()) if valid.any() else float("nan"))
         flow = optical_flow(tgt, src, method="dis")
         delta = cmap.sample(flow, pixels, fill=0.0)
         strength = np.sqrt(cv2.GaussianBlur(src * src, (0, 0), max(2.0 * fine_px, 1.0)))
@@ -264,4 +273,5 @@ def align_albedo(
         V = regularised_update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), scan, on_scan, alpha=alpha,
                                scan_tree=tree, backend=backend)
     out = V[back]
-    return AlbedoAlignment(vertices=out, moved_mm=np.linalg.norm(out - V0, axis=1), confidence=confidence[back])
+    return AlbedoAlignment(vertices=out, moved_mm=np.linalg.norm(out - V0, axis=1), confidence=confidence[back],
+                           mismatch_by_round=mismatch)

@@ -304,6 +304,7 @@ def register_scans(
             registered[i] = aligned.vertices
             report["scans"][i]["colour_alignment_moved_mm"] = {
                 "mean": float(aligned.moved_mm.mean()), "max": float(aligned.moved_mm.max())}
+            report["scans"][i]["colour_mismatch_by_round"] = aligned.mismatch_by_round
         timings["colour_alignment_s"] = time.perf_counter() - t
 
     if refine and K > 1:

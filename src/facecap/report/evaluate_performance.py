@@ -10,6 +10,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError
+from ..mesh.vertex_normals import vertex_normals
+from ..validate import as_faces
 from ..typing import FloatArray
 
 __all__ = ["evaluate_performance", "DenseError", "RegionError"]
@@ -132,6 +134,11 @@ class DenseError:
         Statistics per named region; empty when no regions were given.
     n_frames, n_vertices : int
         Frames T and evaluated vertices (after the mask).
+    across_mean_mm, along_mean_mm : float or None
+        With the faces given: the mean of each error's part across the skin (its component along
+        the truth's vertex normal, absolute; for errors small against the surface's curvature,
+        the distance to the true surface) and of its length along the skin (the rest), over the
+        same samples as ``mean_mm``; None without faces.
     """
 
     mean_mm: float
@@ -147,6 +154,8 @@ class DenseError:
     regions: Mapping[str, RegionError] = field(default_factory=dict)
     n_frames: int = 0
     n_vertices: int = 0
+    across_mean_mm: float | None = None
+    along_mean_mm: float | None = None
 
     def _pct(self, value_mm: float) -> float:
         return 100.0 * value_mm / self.diagonal_mm if self.diagonal_mm > 0 else float("nan")
@@ -201,6 +210,9 @@ class DenseError:
             "per_frame_max_mm": [num(x) for x in self.per_frame_max_mm],
             "regions": {k: r.to_dict() for k, r in self.regions.items()},
         }
+        if self.across_mean_mm is not None:
+            out["across_mean_mm"] = num(self.across_mean_mm)
+            out["along_mean_mm"] = num(self.along_mean_mm)
         if per_vertex:
             out["per_vertex_mean_mm"] = [num(x) for x in self.per_vertex_mean_mm]
         return out
@@ -226,6 +238,7 @@ def evaluate_performance(
     region_names: Sequence[str] | None = None,
     vertex_mask: Any = None,
     chunk_frames: int = 256,
+    faces: Any = None,
 ) -> DenseError:
     """Per-vertex Euclidean error of a solved performance against ground truth.
 
@@ -246,6 +259,9 @@ def evaluate_performance(
     vertex_mask : (n,) bool array or None, optional
         Vertices included in the statistics (e.g. excluding eyeballs).
         Default None: every vertex.
+    faces : (m, 3) int array or None, optional
+        The mesh's triangles: each error is then also split across the skin (along the truth's
+        vertex normals) and along it (``across_mean_mm``, ``along_mean_mm``).
     chunk_frames : int, optional
         Most frames read at once; default 256. It is further capped so that a
         chunk holds at most ~8 million vertex samples (~100-200 MB per array).
@@ -368,6 +384,8 @@ def evaluate_performance(
     per_frame_max = np.empty(T)
     vertex_sum = np.zeros(n)
     total_sum = 0.0
+    across_sum = along_sum = 0.0
+    F = None if faces is None else as_faces(faces, n, name="faces")
     gmin, gmax = np.inf, -np.inf
     max_frame = max_vertex = 0
 
@@ -375,6 +393,12 @@ def evaluate_performance(
         t1 = min(T, t0 + chunk)
         diff = np.subtract(np.asarray(R[t0:t1]), np.asarray(G[t0:t1]), dtype=work)
         err = np.sqrt(np.einsum("tij,tij->ti", diff, diff))  # (k, n)
+        if F is not None and np.all(np.isfinite(err)):
+            normals = vertex_normals(np.asarray(G[t0:t1], dtype=np.float64), F)
+            across = np.abs(np.einsum("tij,tij->ti", diff, normals))
+            along = np.sqrt(np.maximum(err.astype(np.float64) ** 2 - across**2, 0.0))
+            across_sum += float(across[:, eval_idx].sum()) if not all_vertices else float(across.sum())
+            along_sum += float(along[:, eval_idx].sum()) if not all_vertices else float(along.sum())
         del diff
         if not np.all(np.isfinite(err)):
             bad_t, bad_i = np.argwhere(~np.isfinite(err))[0]
@@ -444,4 +468,6 @@ def evaluate_performance(
         regions=MappingProxyType(regions),
         n_frames=T,
         n_vertices=n_eval,
+        across_mean_mm=None if F is None else across_sum / n_samples,
+        along_mean_mm=None if F is None else along_sum / n_samples,
     )

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import zipfile
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -40,7 +41,8 @@ def read_truth(path: str | Path) -> dict[str, np.ndarray]:
     return truth
 
 
-def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: str = "auto") -> DenseError:
+def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: str = "auto",
+                    vertex_mask: Any = None) -> DenseError:
     """Compare a result folder with ground truth, in mm.
 
     What a user gets from a stabilised result is the face *and* its head
@@ -63,6 +65,8 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: st
     frame : {'auto', 'world', 'stabilized'}, default 'auto'
         'auto': 'world' when the result has ``head_motion.npy``, else the
         result's own frame as described above.
+    vertex_mask : (n,) bool array or None, optional
+        Evaluate only these vertices (say, the part of the face the scans saw); None: all.
 
     Returns
     -------
@@ -76,7 +80,9 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: st
     result_mm, truth_mm, truth = result_and_truth_mm(truth_path, result_dir, frame=frame)
     names = [str(s) for s in truth["region_names"]] if "region_names" in truth else None
     labels = truth.get("region_labels")
-    return evaluate_performance(result_mm, truth_mm, region_labels=labels, region_names=names)
+    faces = read_result(result_dir).mesh.faces  # each error split across and along the true skin
+    return evaluate_performance(result_mm, truth_mm, region_labels=labels, region_names=names,
+                                vertex_mask=vertex_mask, faces=faces)
 
 
 def result_and_truth_mm(truth_path: str | Path, result_dir: str | Path, *,
