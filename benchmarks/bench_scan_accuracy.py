@@ -109,6 +109,18 @@ def _basis_errors(synthetic, bases_dir: Path, blend_dir: Path, truth_path: Path,
     }
 
 
+def split_errors(truth: Path, result: Path) -> dict:
+    """Mean error, across and along the skin, on the whole mesh and on the face the scans see (the
+    regions other than 'other': ears, scalp and neck are never scanned)."""
+    sample = load_ict_sample()
+    face = sample.region_labels != list(sample.region_names).index("other")
+    out = {}
+    for name, mask in (("all", None), ("face", face)):
+        e = evaluate_result(truth, result, vertex_mask=mask)
+        out[name] = {"mean_mm": e.mean_mm, "across_mm": e.across_mean_mm, "along_mm": e.along_mean_mm}
+    return out
+
+
 def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: int = 30, colors: bool = False,
              textured: bool = False, reperformance: float = 0.0) -> dict:
     sample = load_ict_sample()
@@ -173,6 +185,7 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
         "blend_pose_correction": blend_report.get("head_pose_correction"),
         "bases": _basis_errors(synthetic, root / "bases", root / "blend", files.truth, root / "animate_auto"),
         "blend_regions_mm": {name: r.mean_mm for name, r in blend.regions.items()},
+        "split": {name: split_errors(files.truth, root / name) for name in ("animate_auto", "blend")},
         "plan_s": plan_s, "register_s": register_s,
     }
 

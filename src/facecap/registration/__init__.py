@@ -9,7 +9,9 @@ In the order a user meets them:
   deformed to match their frame's markers exactly (section 7), the last step of
   :func:`register_scans`; :func:`smooth_marker_changes` (``smooth_marker_changes.py``), as
   :class:`SmoothedChanges`: what of the markers' disagreement with a basis is smooth beyond their
-  noise (a Gaussian process by likelihood), what that fit moves with colour alignment.
+  noise (a Gaussian process by likelihood), what that fit moves with colour alignment;
+  :func:`marker_places_from_bases` (``marker_places_from_bases.py``), as :class:`MarkerPlaces`: each
+  marker's place on the template from the colour-aligned bases' material (their median).
 - :func:`register_markers_to_scan` (``register_markers_to_scan.py``): one
   frame's markers onto a scan, as a :class:`MarkerRegistration`.
 - :func:`register_template_to_scan` (``register_template_to_scan.py``): the
@@ -48,6 +50,7 @@ from __future__ import annotations
 from .align_albedo import DEFAULT_ALBEDO_ITERATIONS, UNSEEN_ANCHOR, AlbedoAlignment, align_albedo
 from .fit_bases_to_markers import fit_bases_to_markers
 from .smooth_marker_changes import SmoothedChanges, smooth_marker_changes
+from .marker_places_from_bases import MarkerPlaces, marker_places_from_bases
 from .cylindrical_map import CylindricalMap, TriangleRaster, cylindrical_map
 from .optical_flow import optical_flow
 from .refine_registration import Refinement, refine_registration
@@ -82,6 +85,8 @@ __all__ = [
     "fit_bases_to_markers",
     "SmoothedChanges",
     "smooth_marker_changes",
+    "MarkerPlaces",
+    "marker_places_from_bases",
     "align_albedo",
     "AlbedoAlignment",
     "DEFAULT_ALBEDO_ITERATIONS",

@@ -13,6 +13,7 @@ from tqdm.auto import tqdm
 
 from .fit_bases_to_markers import fit_bases_to_markers
 from .smooth_marker_changes import smooth_marker_changes
+from .marker_places_from_bases import marker_places_from_bases
 from ..deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM
 from ..errors import FacecapWarning, InputError
 from ..markers.rigid_fit import rigid_fit
@@ -30,6 +31,8 @@ DEFAULT_REST_WEIGHT = 3e-4
 
 TEMPLATE_DEFORMATION_WEIGHT = 0.01
 """Marker displacement weight when the markers are placed on the template (see ``register_scans``)."""
+
+_CONSENSUS_BASES = 3  # colour-aligned bases needed to place the markers on the template by their consensus
 
 
 @dataclass(frozen=True, eq=False)
@@ -272,9 +275,11 @@ def register_scans(
     tmpl_normals = igl.per_vertex_normals(tmpl_mocap.vertices, template.faces)
     marker_normals_rest = np.einsum("mj,mjc->mc", marker_weights, tmpl_normals[np.maximum(marker_vertices, 0)])
     marker_normals_rest /= np.maximum(np.linalg.norm(marker_normals_rest, axis=1, keepdims=True), 1e-12)
+    skins = np.empty((K, X.shape[1], 3))
     for i in tqdm(range(K), desc="template -> scans", disable=not progress, leave=False):
         reg = registrations[i]
         skin = (reg.surface_points - reg.translation) @ reg.rotation  # skin under each marker, mocap frame
+        skins[i] = skin
         usable = on_template & ~reg.unmatched
         off_scan = X[i] - marker_offset_mm * marker_normals_rest
         targets = np.where(usable[:, None], skin, off_scan)[on_template]
@@ -306,6 +311,19 @@ def register_scans(
                 "mean": float(aligned.moved_mm.mean()), "max": float(aligned.moved_mm.max())}
             report["scans"][i]["colour_mismatch_by_round"] = aligned.mismatch_by_round
         timings["colour_alignment_s"] = time.perf_counter() - t
+        # The template's marker places came from the rest frame, which may hold a resting expression
+        # (lowered brows, a smile) that puts them off their skin points; the colour-aligned bases know
+        # each marker's skin point on every scan in the template's own material: their consensus
+        # replaces the rest frame's guess before section 7 pins the bases to the markers.
+        if K >= _CONSENSUS_BASES:
+            landed_on = np.stack([~r.unmatched for r in registrations]) & on_template[None]
+            places = marker_places_from_bases(registered, template.faces, tmpl_mocap.vertices, skins, landed_on)
+            moved = places.moved_mm(tmpl_mocap.vertices, marker_vertices, marker_weights)
+            marker_vertices = np.where(places.found[:, None], places.vertices, marker_vertices)
+            marker_weights = np.where(places.found[:, None], places.weights, marker_weights)
+            report["marker_places_from_bases_mm"] = {"mean": float(np.nanmean(moved)) if places.found.any() else 0.0,
+                                                     "max": float(np.nanmax(moved)) if places.found.any() else 0.0,
+                                                     "markers": int(places.found.sum())}
 
     if refine and K > 1:
         from .refine_registration import refine_registration
