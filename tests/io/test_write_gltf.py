@@ -324,3 +324,26 @@ def test_head_motion_must_be_rigid(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="head_motion: 5 frames"):
         write_gltf(tmp_path / "bad.glb", mesh, targets=targets, weights=weights, rate=RATE, head_motion=motion[:5])
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("compress", [False, True])
+def test_the_scans_texture_is_the_files_base_colour(tmp_path: Path, compress: bool) -> None:
+    from dataclasses import replace
+
+    mesh = seamed_grid()
+    image = np.random.default_rng(3).integers(0, 256, (8, 16, 3)).astype(np.uint8)
+    textured = replace(mesh, texture=image)
+    path = tmp_path / "textured.glb"
+    write_gltf(path, textured, rate=RATE, compress=compress)
+    assert_valid(path)
+    if compress:
+        return  # trimesh cannot decode meshopt; the uncompressed file checks the colours
+    # trimesh, an independent reader, finds the same image and samples it at the file's UVs
+    scene = trimesh.load(path, process=False, force="scene")
+    (geometry,) = scene.geometry.values()
+    texture = np.asarray(geometry.visual.material.baseColorTexture.convert("RGB"))
+    np.testing.assert_array_equal(texture, image)
+    rows, cols = np.mgrid[0:8, 0:16]
+    uv = np.stack([(cols.ravel() + 0.5) / 16, 1.0 - (rows.ravel() + 0.5) / 8], axis=1)
+    colours = trimesh.visual.color.uv_to_color(uv, geometry.visual.material.baseColorTexture)[:, :3]
+    np.testing.assert_array_equal(colours, image[rows.ravel(), cols.ravel()])

@@ -289,6 +289,13 @@ def write_gltf(
                                          "roughnessFactor": 0.6},
             }],
         }
+        if uv is not None and mesh.texture is not None:  # the scan's colour texture, as the file's base colour
+            gltf["images"] = [{"bufferView": builder.raw_view(_png_bytes(mesh.texture)), "mimeType": "image/png"}]
+            gltf["samplers"] = [{"magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497}]
+            gltf["textures"] = [{"sampler": 0, "source": 0}]
+            pbr = gltf["materials"][0]["pbrMetallicRoughness"]
+            pbr["baseColorFactor"] = [1.0, 1.0, 1.0, 1.0]
+            pbr["baseColorTexture"] = {"index": 0, "texCoord": 0}
         if extras is not None:
             gltf["asset"]["extras"] = extras
 
@@ -580,6 +587,12 @@ class _GlbBuilder:
         self.accessors.append(accessor)
         return len(self.accessors) - 1
 
+    def raw_view(self, payload: bytes) -> int:
+        """Add ``payload`` (an encoded image) as a buffer view of its own, never compressed; its index."""
+        self.views.append({"byteLength": len(payload)})
+        self.arrays.append((np.frombuffer(payload, dtype=np.uint8), "RAW"))
+        return len(self.views) - 1
+
     def finish(self, gltf: dict[str, Any], meshopt: Any | None) -> list[bytes | memoryview]:
         """Lay the views out (4-byte aligned), fill ``gltf``'s buffer tables; return the BIN chunk's parts."""
         parts: list[bytes | memoryview] = []
@@ -587,7 +600,7 @@ class _GlbBuilder:
         fallback_offset = 0
         for view, (data, mode) in zip(self.views, self.arrays):
             raw = memoryview(data).cast("B")
-            if meshopt is None:
+            if meshopt is None or mode == "RAW":
                 view["buffer"] = 0
                 view["byteOffset"] = offset
                 payload: bytes | memoryview = raw
@@ -615,6 +628,17 @@ class _GlbBuilder:
             gltf["extensionsUsed"] = [_MESHOPT]
             gltf["extensionsRequired"] = [_MESHOPT]
         return parts
+
+
+def _png_bytes(texture: np.ndarray) -> bytes:
+    """An 8-bit PNG of an RGB texture (16-bit ones rounded to 8: what glTF viewers read)."""
+    import cv2
+
+    image = texture if texture.dtype == np.uint8 else np.round(texture / 257.0).astype(np.uint8)
+    ok, encoded = cv2.imencode(".png", np.ascontiguousarray(image[:, :, ::-1]))
+    if not ok:
+        raise InputError("mesh.texture: OpenCV could not encode it as PNG")
+    return encoded.tobytes()
 
 
 def _aligned(size: int) -> int:

@@ -126,6 +126,7 @@ def review_mesh(mesh: Mesh, max_vertices: int = 100_000) -> ReviewMesh:
     small = Mesh(
         V[vertex_subset], triangles, uvs=uvs, uv_indices=uv_indices, source_unit=mesh.source_unit,
         source_path=mesh.source_path, vertex_colors=colors,
+        texture=mesh.texture if uv_indices is not None else None,  # the same UVs, so the same image
     )
     return ReviewMesh(small, vertex_subset.astype(np.int64))
 
