@@ -75,11 +75,12 @@ def test_several_materials_are_packed_and_each_face_keeps_its_own_image(tmp_path
         "newmtl a\nKd 1 1 1\nmap_Kd -o 0 0 0 left.png\n"
         "newmtl b\nmap_Kd textures\\right.png\n")  # a Windows path, another case: found by name
     (tmp_path / "two.obj").write_text(
-        "mtllib two.mtl\n"
+        "mtllib none.mtl two.mtl\n"  # several files on one line, as the OBJ specification allows
         "v 0 0 0\nv 10 0 0\nv 10 10 0\nv 0 10 0\nv 20 0 0\nv 20 10 0\n"
         "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n"
         "usemtl a\nf 1/1 2/2 3/3 4/4\nusemtl b\nf 2/1 5/2 6/3 3/4\n")
-    mesh = read_mesh(tmp_path / "two.obj")
+    with pytest.warns(FacecapWarning, match="-o/-s"):  # the offset option is named, not applied
+        mesh = read_mesh(tmp_path / "two.obj")
     assert mesh.texture is not None
     uv, rc = _texel_centres(8, 8)
     tri, bary = _points_of_uv(uv)  # the first quad's triangles are 0 and 1
@@ -143,3 +144,21 @@ def test_a_textured_sequence_shares_one_image(tmp_path):
         for k in range(3):
             back = read_mesh(folder / f"frame_{k:06d}.{fmt}")
             assert np.array_equal(back.texture, image) and np.allclose(back.vertices, frames[k])
+
+
+def test_a_ply_with_several_textures_packs_them_by_texnumber(tmp_path):
+    red = np.zeros((4, 4, 3), np.uint8)
+    red[..., 0] = 255
+    blue = np.zeros((4, 4, 3), np.uint8)
+    blue[..., 2] = 255
+    write_image(tmp_path / "a.png", red)
+    write_image(tmp_path / "b.png", blue)
+    header = ("ply\nformat ascii 1.0\ncomment TextureFile a.png\ncomment TextureFile b.png\nelement vertex 4\n"
+              "property float x\nproperty float y\nproperty float z\nelement face 2\n"
+              "property list uchar int vertex_indices\nproperty list uchar float texcoord\nproperty int texnumber\n"
+              "end_header\n")
+    body = "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 6 0 0 1 0 1 1 0\n3 0 2 3 6 0 0 1 1 0 1 1\n"
+    (tmp_path / "m.ply").write_text(header + body)
+    mesh = read_mesh(tmp_path / "m.ply")
+    centre = np.full((2, 3), 1.0 / 3.0)
+    assert np.allclose(surface_colors(mesh, [0, 1], centre), [[1, 0, 0], [0, 0, 1]])

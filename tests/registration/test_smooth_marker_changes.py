@@ -63,3 +63,20 @@ def test_markers_left_out_are_predicted_from_the_others(marker_places):
 def test_shapes_are_checked(marker_places):
     with pytest.raises(InputError, match="positions"):
         smooth_marker_changes(np.zeros((2, 90, 3)), marker_places[:10])
+
+
+def test_markers_every_scan_misses_do_not_spoil_the_fit(marker_places):
+    # a single-view scan misses a few side-of-face markers in every basis; their guesses are 3 mm off
+    rng = np.random.default_rng(5)
+    smooth = np.stack([_smooth_field(marker_places, rng, 20.0) for _ in range(10)])
+    noisy = smooth + rng.normal(scale=0.15, size=smooth.shape)
+    weights = np.ones(smooth.shape[:2])
+    for k in range(10):
+        missed = rng.choice(90, 3, replace=False)
+        weights[k, missed] = 0
+        noisy[k, missed] += 3.0
+    out = smooth_marker_changes(noisy, marker_places, weights=weights)
+    counted = weights > 0
+    clean = smooth_marker_changes(smooth + rng.normal(scale=0.15, size=smooth.shape), marker_places)
+    assert np.abs(out.changes - smooth)[counted].mean() < 0.09  # measured 0.071; noise alone 0.12, the old pooling 0.105
+    assert out.noise_mm == pytest.approx(clean.noise_mm, rel=0.3)

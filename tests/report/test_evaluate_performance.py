@@ -143,6 +143,8 @@ def test_errors_split_across_and_along_the_skin():
     out = evaluate_performance(result, truth, faces=F)
     assert out.mean_mm == pytest.approx(0.5)
     assert out.across_mean_mm == pytest.approx(0.4) and out.along_mean_mm == pytest.approx(0.3)
-    masked = evaluate_performance(result, truth, faces=F, vertex_mask=np.arange(V.shape[0]) < 5)
-    assert masked.across_mean_mm == pytest.approx(0.4) and masked.n_vertices == 5
+    varied = truth + np.arange(V.shape[0])[None, :, None] * np.array([0.0, 0.0, 0.1])  # vertex i: 0.1 i across
+    masked = evaluate_performance(varied, truth, faces=F, vertex_mask=np.arange(V.shape[0]) < 5)
+    assert masked.across_mean_mm == pytest.approx(0.2) and masked.along_mean_mm == pytest.approx(0.0, abs=1e-6)
+    assert masked.n_vertices == 5
     assert evaluate_performance(result, truth).across_mean_mm is None

@@ -30,12 +30,19 @@ def test_the_baked_albedo_is_the_skin_at_each_material_point(face):
 
 
 def _analytic_skin(face) -> SkinTexture:
-    """An albedo that is a known function of UV (stripes across the atlas), not the package's skin."""
+    """An albedo that is a known function of UV (:func:`_albedo_of_uv`), not the package's skin."""
     size = 256
     rows, cols = np.mgrid[0:size, 0:size]
     u = (cols + 0.5) / size
-    image = np.stack([0.3 + 0.2 * np.sin(2 * np.pi * 6 * u)] * 3, axis=2).astype(np.float32)
-    return SkinTexture(image, face.uvs, np.asarray(face.uv_indices)[triangle_corners(face)])
+    v = 1.0 - (rows + 0.5) / size
+    image = np.stack([_albedo_of_uv(np.stack([u, v], -1).reshape(-1, 2)).reshape(size, size)] * 3, axis=2)
+    return SkinTexture(image.astype(np.float32), face.uvs, np.asarray(face.uv_indices)[triangle_corners(face)])
+
+
+def _albedo_of_uv(uv):
+    """Stripes across u and a ramp along v: a v flip or a u/v swap shows."""
+    return 0.3 + 0.15 * np.sin(2 * np.pi * 6 * uv[:, 0]) + 0.2 * uv[:, 1]
+
 
 
 def test_a_scans_texture_shows_the_skin_at_each_vertex_in_its_own_atlas(face):
@@ -48,7 +55,7 @@ def test_a_scans_texture_shows_the_skin_at_each_vertex_in_its_own_atlas(face):
     # the colour at each scan vertex (its own UVs, its own atlas) against the albedo at its material point
     material_uv = np.einsum("kc,kcd->kd", scanned.barycentric,
                             face.uvs[np.asarray(face.uv_indices)[triangle_corners(face)][scanned.source_faces]])
-    albedo = 0.3 + 0.2 * np.sin(2 * np.pi * 6 * material_uv[:, 0])
+    albedo = _albedo_of_uv(material_uv)
     corner = np.zeros(mesh.n_vertices, dtype=np.int64)
     corner[mesh.faces.ravel()] = np.arange(mesh.faces.size)
     tri, k = np.divmod(corner, 3)
@@ -66,6 +73,6 @@ def test_the_textured_neutral_carries_the_skin_in_the_rest_surfaces_own_atlas(fa
     tri = np.arange(face.n_faces)
     centre = np.full((face.n_faces, 3), 1.0 / 3.0)
     uv = np.einsum("kc,kcd->kd", centre, face.uvs[np.asarray(face.uv_indices)[triangle_corners(face)]])
-    albedo = 0.3 + 0.2 * np.sin(2 * np.pi * 6 * uv[:, 0])
+    albedo = _albedo_of_uv(uv)
     recorded = srgb_to_linear(surface_colors(neutral, tri, centre))[:, 0]
     assert np.corrcoef(recorded, albedo)[0, 1] > 0.97

@@ -33,6 +33,7 @@ TEXTURE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".tga")
 """Image types a mesh's texture may be in (lower case)."""
 
 _PAD_PX = 2  # each packed image's edge repeated around it, so bilinear lookups near a seam stay inside it
+_WRAP_TOLERANCE = 1e-5  # UVs this close outside [0, 1] are taken as on its edge when packing
 _DEFAULT_KD = (0.8, 0.8, 0.8)  # the MTL specification's diffuse colour when a material gives none
 # map_Kd options and how many values each takes (MTL specification, Wavefront 1995)
 _MAP_OPTIONS = {"-blendu": 1, "-blendv": 1, "-bm": 1, "-boost": 1, "-cc": 1, "-clamp": 1, "-imfchan": 1,
@@ -119,6 +120,9 @@ def read_mtl(path: Path) -> dict[str, MtlMaterial]:
                 pass  # a malformed colour keeps the default: the texture is what matters here
         elif key == "map_kd":
             texture = _find_image(path.parent, _image_name(words[1:]), path)
+            if any(w.lower() in ("-o", "-s") for w in words[1:]):
+                warnings.warn(f"{path}: material {name!r}: map_Kd's -o/-s (texture offset and scale) are not applied",
+                              FacecapWarning, stacklevel=3)
     close()
     return materials
 
@@ -188,10 +192,12 @@ def obj_texture(path: Path, data: bytes, line_starts: IntArray, face_lines: IntA
         return uvs, uv_corners, None
     materials: dict[str, MtlMaterial] = {}
     for library in libraries:
-        mtl = path.parent / library.replace("\\", "/")
-        if not mtl.is_file():  # common when a mesh is copied alone; colour only matters where asked for
-            continue
-        materials.update(read_mtl(mtl))
+        # one name (which may hold spaces), or several on one line as the OBJ specification allows
+        names = [library] if (path.parent / library.replace("\\", "/")).is_file() else library.split()
+        for name in names:
+            mtl = path.parent / name.replace("\\", "/")
+            if mtl.is_file():  # a missing one is common when a mesh is copied alone: colour matters only where asked
+                materials.update(read_mtl(mtl))
     # each face's material: the last usemtl before it (-1: none)
     slot = np.searchsorted(np.asarray(use_lines, dtype=np.int64), face_lines, side="right") - 1
     names = [use_names[i] if i >= 0 else None for i in range(len(use_names))]
@@ -269,6 +275,8 @@ def pack_textures(images: list[np.ndarray], uvs: FloatArray, uv_corners: IntArra
         atlas[t.shape[0]:, x0[k] : x0[k] + t.shape[1]] = t[-1:]
     pairs, inverse = np.unique(np.stack([uv_corners, corner_image], axis=1), axis=0, return_inverse=True)
     uv = uvs[pairs[:, 0]].copy()
+    uv[(uv < 0) & (uv > -_WRAP_TOLERANCE)] = 0.0  # rounding just outside an edge is the edge, not the far side
+    uv[(uv > 1) & (uv < 1 + _WRAP_TOLERANCE)] = 1.0
     outside = (uv < 0) | (uv > 1)
     uv[outside] -= np.floor(uv[outside])
     k = pairs[:, 1]

@@ -519,22 +519,32 @@ def _read_ply(path: Path) -> _MeshParts:
                 uv_corners = corners
                 break
     texture = None
-    if uvs is not None:
-        texture = _ply_texture(data[:body], path)
+    if uvs is not None and uv_corners is not None:
+        uvs, uv_corners, texture = _ply_texture(data[:body], path, uvs, uv_corners, sizes, face.get("texnumber"))
     return V, sizes, corners, uvs, uv_corners, _ply_colors(vertex, path), texture
 
 
-def _ply_texture(header: bytes, path: Path) -> np.ndarray | None:
-    """The image a ``comment TextureFile NAME`` header line names (MeshLab's convention), or None."""
-    m = re.search(rb"^comment[ \t]+TextureFile[ \t]+([^\r\n]+)", header, re.MULTILINE | re.IGNORECASE)
-    if m is None:
-        return None
-    name = m.group(1).decode("utf-8", errors="replace").strip()
+def _ply_texture(header: bytes, path: Path, uvs: FloatArray, uv_corners: IntArray, sizes: IntArray,
+                 texnumber: Any) -> tuple[FloatArray, IntArray, np.ndarray | None]:
+    """The images ``comment TextureFile NAME`` header lines name (MeshLab's convention), packed into one
+    atlas by the faces' ``texnumber`` when there are several; the UVs as they come out."""
+    names = [m.group(1).decode("utf-8", errors="replace").strip() for m in re.finditer(
+        rb"^comment[ \t]+TextureFile[ \t]+([^\r\n]+)", header, re.MULTILINE | re.IGNORECASE)]
+    if not names:
+        return uvs, uv_corners, None
     try:
-        return read_texture_image(path.parent / name.replace("\\", "/"))
+        images = [read_texture_image(path.parent / name.replace("\\", "/")) for name in names]
     except FileFormatError as exc:
         warnings.warn(f"{path}: {exc}; the mesh is read without its colour", FacecapWarning, stacklevel=4)
-        return None
+        return uvs, uv_corners, None
+    if len(images) == 1:
+        return uvs, uv_corners, images[0]
+    which = None if texnumber is None or isinstance(texnumber, tuple) else np.asarray(texnumber, dtype=np.int64)
+    if which is None or which.shape != sizes.shape or which.min() < 0 or which.max() >= len(images):
+        warnings.warn(f"{path}: {len(images)} TextureFile images but no valid per-face 'texnumber'; "
+                      "the mesh is read without its colour", FacecapWarning, stacklevel=4)
+        return uvs, uv_corners, None
+    return pack_textures(images, uvs, uv_corners, np.repeat(which, sizes))
 
 
 _PLY_COLOR_NAMES = (("red", "green", "blue"), ("r", "g", "b"),

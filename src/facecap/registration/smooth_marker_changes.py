@@ -16,6 +16,7 @@ __all__ = ["SmoothedChanges", "smooth_marker_changes"]
 _LENGTHS_MM = (6.0, 10.0, 15.0, 22.0, 33.0, 50.0)
 _AMPLITUDES_MM = np.geomspace(0.005, 3.0, 24)
 _NOISES_MM = np.geomspace(0.005, 1.0, 24)
+_MIN_POOLED_MARKERS = 10
 
 
 class SmoothedChanges(NamedTuple):
@@ -92,14 +93,16 @@ def smooth_marker_changes(changes: Any, positions: Any, *, weights: Any = None) 
     if W.shape != (K, M):
         raise InputError(f"weights: expected shape ({K}, {M}), got {W.shape}")
     d2 = np.sum((P[:, None] - P[None]) ** 2, axis=2)
-    # the likelihood pools the bases whose markers all count (the common case); a basis with markers
-    # left out is predicted with the chosen hyperparameters
-    full = np.flatnonzero(W.all(axis=1))
-    pool = Y[full].transpose(1, 0, 2).reshape(M, -1) if full.size else Y.transpose(1, 0, 2).reshape(M, -1)
+    # the likelihood pools every basis over the markers that count in all of them (a single-view scan
+    # misses a few side-of-face markers in every basis); the left-out ones are predicted afterwards
+    rows = np.flatnonzero(W.all(axis=0))
+    if rows.size < _MIN_POOLED_MARKERS:
+        rows = np.arange(M)  # too few markers seen everywhere: all of them, the guessed ones included
+    pool = Y[:, rows].transpose(1, 0, 2).reshape(rows.size, -1)
     best = (-np.inf, _LENGTHS_MM[0], _AMPLITUDES_MM[0], _NOISES_MM[0])
     n_cols = pool.shape[1]
     for length in _LENGTHS_MM:
-        lam, Q = np.linalg.eigh(np.exp(-0.5 * d2 / length**2))
+        lam, Q = np.linalg.eigh(np.exp(-0.5 * d2[np.ix_(rows, rows)] / length**2))
         lam = np.clip(lam, 0.0, None)
         z2 = np.sum((Q.T @ pool) ** 2, axis=1)  # (M,) energy of the data along each eigenvector
         var = _AMPLITUDES_MM[:, None, None] ** 2 * lam[None, None] + _NOISES_MM[None, :, None] ** 2

@@ -394,7 +394,8 @@ def evaluate_performance(
         diff = np.subtract(np.asarray(R[t0:t1]), np.asarray(G[t0:t1]), dtype=work)
         err = np.sqrt(np.einsum("tij,tij->ti", diff, diff))  # (k, n)
         if F is not None and np.all(np.isfinite(err)):
-            normals = vertex_normals(np.asarray(G[t0:t1], dtype=np.float64), F)
+            # a vertex in no (or only degenerate) triangles has no normal: its whole error counts as along
+            normals = np.nan_to_num(vertex_normals(np.asarray(G[t0:t1], dtype=np.float64), F))
             across = np.abs(np.einsum("tij,tij->ti", diff, normals))
             along = np.sqrt(np.maximum(err.astype(np.float64) ** 2 - across**2, 0.0))
             across_sum += float(across[:, eval_idx].sum()) if not all_vertices else float(across.sum())
