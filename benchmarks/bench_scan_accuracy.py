@@ -140,9 +140,9 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
     stab_deg = _stabilisation_error_deg(synthetic, conditioned)
     texture: list[str] = []
     colour = {}
+    regions = SkinRegions(sample.region_labels, tuple(sample.region_names),  # brows and lips of the skin
+                          synthetic.scan.vertices[sample.landmarks[48:60]])
     if colors:  # scanners record colour: the skin's albedo, each scan with its own exposure and shading
-        regions = SkinRegions(sample.region_labels, tuple(sample.region_names),
-                              synthetic.scan.vertices[sample.landmarks[48:60]])
         colour = dict(colors=True, albedo_seed=case.scan_seed, skin_regions=regions, file_format="ply")
         # the neutral's own coloured scan (frame 0 is neutral): the template's texture
         neutral = write_planned_scans(synthetic, [0], root / "texture", target_vertices=2 * scan_vertices,
@@ -150,8 +150,6 @@ def run_case(case, root: Path, *, frames: int, scan_vertices: int, max_scans: in
         texture = ["--template-texture", str(neutral[0]), "--color-alignment"]
     template = files.scan
     if textured:  # scanners deliver a colour texture: every scan its own atlas, the neutral textured in its own
-        regions = SkinRegions(sample.region_labels, tuple(sample.region_names),
-                              synthetic.scan.vertices[sample.landmarks[48:60]])
         skin = bake_skin_albedo(synthetic.scan, seed=case.scan_seed, region=regions)
         template = root / "inputs" / "neutral_textured.obj"
         write_mesh(textured_neutral(synthetic.scan, skin, seed=case.scan_seed + 1000), template)

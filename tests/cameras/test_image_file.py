@@ -74,6 +74,12 @@ def test_half_float_exr_reads_as_float32_exactly(tmp_path: Path) -> None:
     np.testing.assert_array_equal(image, pixels.astype(np.float32))
 
 
+def test_bmp_round_trips(tmp_path: Path) -> None:
+    image = np.random.default_rng(4).integers(0, 256, (5, 7, 3)).astype(np.uint8)
+    write_image(tmp_path / "a.bmp", image)
+    assert np.array_equal(read_image(tmp_path / "a.bmp"), image)
+
+
 def test_bad_images(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="EXR holds floats"):
         write_image(tmp_path / "a.exr", np.zeros((4, 4), np.uint8))
@@ -82,7 +88,9 @@ def test_bad_images(tmp_path: Path) -> None:
     with pytest.raises(InputError, match="expected an"):
         write_image(tmp_path / "a.png", np.zeros((4, 4, 2), np.uint8))
     with pytest.raises(InputError, match="expected one of"):
-        write_image(tmp_path / "a.bmp", np.zeros((4, 4), np.uint8))
+        write_image(tmp_path / "a.gif", np.zeros((4, 4), np.uint8))
+    with pytest.raises(InputError, match="holds uint8"):
+        write_image(tmp_path / "a.bmp", np.zeros((4, 4), np.uint16))  # BMP has no 16-bit colour
     assert list(tmp_path.iterdir()) == []
     (tmp_path / "broken.png").write_bytes(b"\x89PNG\r\n\x1a\n truncated")
     with pytest.raises(FileFormatError, match="cannot decode"):

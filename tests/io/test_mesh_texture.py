@@ -162,3 +162,12 @@ def test_a_ply_with_several_textures_packs_them_by_texnumber(tmp_path):
     mesh = read_mesh(tmp_path / "m.ply")
     centre = np.full((2, 3), 1.0 / 3.0)
     assert np.allclose(surface_colors(mesh, [0, 1], centre), [[1, 0, 0], [0, 0, 1]])
+
+
+def test_a_material_without_an_image_packs_as_its_diffuse_colour(tmp_path):
+    write_image(tmp_path / "t.png", _image(4, 4, seed=7))
+    (tmp_path / "m.mtl").write_text("newmtl a\nmap_Kd t.png\nnewmtl plain\nKd 0 1 0\n")
+    (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+                                    "usemtl a\nf 1/1 2/2 3/3\nusemtl plain\nf 2/1 4/2 3/3\n")
+    mesh = read_mesh(tmp_path / "m.obj")
+    assert np.allclose(surface_colors(mesh, [1], [[1 / 3, 1 / 3, 1 / 3]]), [[0, 1, 0]])

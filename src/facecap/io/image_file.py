@@ -1,4 +1,4 @@
-"""One image file, read and written as stored: PNG (8 or 16 bit), JPEG, TIFF through OpenCV, EXR through OpenEXR.
+"""One image file, read and written as stored: PNG (8 or 16 bit), JPEG, TIFF, BMP through OpenCV, EXR through OpenEXR.
 
 Images are ``(H, W)`` (grey) or ``(H, W, C)`` arrays with channels in **RGB(A)**
 order (OpenCV's BGR is swapped at the boundary), in the file's own type and
@@ -24,7 +24,7 @@ from .atomic_write import atomic_path
 
 __all__ = ["read_image", "write_image", "IMAGE_SUFFIXES"]
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".exr")
 """Image file suffixes facecap reads (lower case)."""
 
 _JPEG_QUALITY = 95
@@ -53,7 +53,7 @@ def read_image(path: str | os.PathLike[str]) -> np.ndarray:
     Parameters
     ----------
     path : str or path-like
-        A ``.png``, ``.jpg``/``.jpeg``, ``.tif``/``.tiff`` or ``.exr`` file.
+        A ``.png``, ``.jpg``/``.jpeg``, ``.tif``/``.tiff``, ``.bmp`` or ``.exr`` file.
 
     Returns
     -------
@@ -101,7 +101,7 @@ def write_image(path: str | os.PathLike[str], image: Any) -> None:
     ----------
     path : str or path-like
         Destination; the suffix chooses the format: ``.png`` (uint8 or uint16),
-        ``.tif``/``.tiff`` (uint8 or uint16), ``.jpg``/``.jpeg`` (uint8, quality 95, lossy)
+        ``.tif``/``.tiff`` (uint8 or uint16), ``.bmp`` (uint8), ``.jpg``/``.jpeg`` (uint8, quality 95, lossy)
         or ``.exr`` (float32, ZIP-compressed, lossless; float64 is narrowed to float32).
     image : (H, W) or (H, W, C) array, C in {1, 3, 4}
         RGB(A) channel order.
@@ -129,7 +129,7 @@ def write_image(path: str | os.PathLike[str], image: Any) -> None:
             with OpenEXR.File(header, {key: np.ascontiguousarray(A, dtype=np.float32)}) as exr:
                 exr.write(str(tmp))
         return
-    allowed = (np.uint8,) if suffix in (".jpg", ".jpeg") else (np.uint8, np.uint16)
+    allowed = (np.uint8,) if suffix in (".jpg", ".jpeg", ".bmp") else (np.uint8, np.uint16)
     if A.dtype not in allowed:
         raise InputError(f"{suffix} holds {' or '.join(np.dtype(t).name for t in allowed)}; got {A.dtype}",
                          path=str(file))

@@ -50,8 +50,8 @@ class MtlMaterial(NamedTuple):
 def read_texture_image(path: str | os.PathLike[str]) -> np.ndarray:
     """Read a texture image as stored: ``(h, w, 3)`` uint8 or uint16, sRGB-encoded, RGB order.
 
-    Grey images are repeated into three channels and alpha is dropped. PNG, JPEG and TIFF are
-    read by OpenCV (:func:`facecap.io.image_file.read_image`), BMP by OpenCV too, TGA by Pillow.
+    Grey images are repeated into three channels and alpha is dropped. PNG, JPEG, TIFF and BMP are
+    read by :func:`facecap.io.image_file.read_image` (OpenCV), TGA by Pillow.
 
     Raises
     ------
@@ -65,7 +65,7 @@ def read_texture_image(path: str | os.PathLike[str]) -> np.ndarray:
                               path=str(file))
     if not file.is_file():
         raise FileFormatError("texture image not found", path=str(file))
-    if suffix == ".tga":
+    if suffix == ".tga":  # the one texture type OpenCV does not read
         from PIL import Image
 
         try:
@@ -73,13 +73,6 @@ def read_texture_image(path: str | os.PathLike[str]) -> np.ndarray:
                 image = np.asarray(im.convert("RGB"))
         except OSError as exc:
             raise FileFormatError(f"Pillow cannot decode this image ({exc})", path=str(file)) from None
-    elif suffix == ".bmp":
-        import cv2
-
-        image = cv2.imread(str(file), cv2.IMREAD_COLOR)
-        if image is None:
-            raise FileFormatError("OpenCV cannot decode this image", path=str(file))
-        image = image[:, :, ::-1]
     else:
         image = read_image(file)
     if image.dtype not in (np.uint8, np.uint16):
@@ -200,36 +193,25 @@ def obj_texture(path: Path, data: bytes, line_starts: IntArray, face_lines: IntA
                 materials.update(read_mtl(mtl))
     # each face's material: the last usemtl before it (-1: none)
     slot = np.searchsorted(np.asarray(use_lines, dtype=np.int64), face_lines, side="right") - 1
-    names = [use_names[i] if i >= 0 else None for i in range(len(use_names))]
-    used = sorted(set(slot.tolist()))
-    images: dict[int, np.ndarray] = {}
-    chosen: dict[int, Path | None] = {}
-    for s in used:
-        material = materials.get(names[s]) if s >= 0 else None  # type: ignore[arg-type]
-        chosen[s] = material.texture if material is not None else None
-    if all(p is None for p in chosen.values()):
+    used = np.unique(slot)
+    used_materials = [materials.get(use_names[k]) if k >= 0 else None for k in used.tolist()]
+    paths = [m.texture if m is not None else None for m in used_materials]
+    if all(p is None for p in paths):
         return uvs, uv_corners, None
-    cache: dict[Path, np.ndarray] = {}
-    for s, p in chosen.items():
-        if p is not None and p not in cache:
-            try:
-                cache[p] = read_texture_image(p)
-            except FileFormatError as exc:
-                warnings.warn(f"{path}: {exc}; the mesh is read without its colour", FacecapWarning, stacklevel=3)
-                return uvs, uv_corners, None
-    distinct = {p for p in chosen.values()}
-    if len(distinct) == 1:  # one image for every face: no packing, the file's UVs as they are
-        return uvs, uv_corners, cache[next(iter(distinct))]  # type: ignore[index]
-    depth = np.uint16 if any(im.dtype == np.uint16 for im in cache.values()) else np.uint8
-    for s, p in chosen.items():
-        if p is not None:
-            images[s] = cache[p]
-        else:  # a material without an image: its flat diffuse colour
-            kd = materials[names[s]].kd if s >= 0 and names[s] in materials else _DEFAULT_KD  # type: ignore[index]
-            images[s] = np.broadcast_to(np.clip(kd, 0, 1) * np.iinfo(depth).max, (4, 4, 3)).round().astype(depth)
-    order = {s: k for k, s in enumerate(used)}
-    corner_image = np.repeat(np.array([order[s] for s in slot.tolist()], dtype=np.int64), sizes)
-    return pack_textures([images[s] for s in used], uvs, uv_corners, corner_image)
+    try:
+        decoded = {p: read_texture_image(p) for p in set(paths) if p is not None}
+    except FileFormatError as exc:
+        warnings.warn(f"{path}: {exc}; the mesh is read without its colour", FacecapWarning, stacklevel=3)
+        return uvs, uv_corners, None
+    if len(set(paths)) == 1:  # one image for every face: no packing, the file's UVs as they are
+        return uvs, uv_corners, decoded[paths[0]]
+    depth = np.uint16 if any(im.dtype == np.uint16 for im in decoded.values()) else np.uint8
+    # a material without an image packs as its flat diffuse colour
+    images = [decoded[p] if p is not None else
+              np.full((4, 4, 3), np.round(np.clip(m.kd if m is not None else _DEFAULT_KD, 0, 1) * np.iinfo(depth).max),
+                      dtype=depth)
+              for p, m in zip(paths, used_materials)]
+    return pack_textures(images, uvs, uv_corners, np.repeat(np.searchsorted(used, slot), sizes))
 
 
 def pack_textures(images: list[np.ndarray], uvs: FloatArray, uv_corners: IntArray, corner_image: IntArray

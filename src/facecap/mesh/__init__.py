@@ -21,8 +21,9 @@ In the order a user meets them:
   per position across UV seams, as a :class:`WeldedMesh`.
 - :func:`laplace_operators` (``laplacian.py``): cotangent Laplacian and mixed
   Voronoi mass (Meyer et al. 2003), as :class:`LaplaceOperators`.
-- :func:`surface_colors`, :func:`texel_size_mm`, :func:`has_colors` (``surface_colors.py``): a
-  mesh's colour at points on it, from its texture or its vertex colours, and how fine a texture is.
+- :func:`surface_colors`, :func:`texel_size_mm`, :func:`has_colors`, :func:`sample_image`
+  (``surface_colors.py``): a mesh's colour at points on it, from its texture or its vertex colours,
+  how fine a texture is, and the bilinear lookup of an image at UVs.
 - :func:`median_edge_length` (``median_edge_length.py``): the median length of the
   triangles' sides, the scale a mesh is sampled at.
 - :func:`mean_curvature` (``mean_curvature.py``): per-vertex mean curvature
@@ -51,7 +52,7 @@ from .median_edge_length import median_edge_length
 from .nearest_on_polyline import nearest_on_polyline
 from .resample_polyline import ResampledPolyline, resample_polyline
 from .review_mesh import ReviewMesh, review_mesh
-from .surface_colors import has_colors, surface_colors, texel_size_mm
+from .surface_colors import has_colors, sample_image, surface_colors, texel_size_mm
 from .uv_raster import UVRaster
 from .vertex_normals import face_normals, vertex_normals
 from .weld_duplicate_vertices import WeldedMesh, weld_duplicate_vertices
@@ -62,6 +63,7 @@ __all__ = [
     "surface_colors",
     "texel_size_mm",
     "has_colors",
+    "sample_image",
     "check_mesh",
     "SpdFactor",
     "available_backends",

@@ -11,7 +11,7 @@ from ..io.write_gltf import triangle_corners
 from ..structures import Mesh
 from ..typing import FloatArray
 
-__all__ = ["surface_colors", "texel_size_mm", "has_colors"]
+__all__ = ["surface_colors", "texel_size_mm", "has_colors", "sample_image"]
 
 
 def has_colors(mesh: Mesh) -> bool:
@@ -62,16 +62,20 @@ def surface_colors(mesh: Mesh, triangles: Any, barycentric: Any) -> FloatArray:
     if mesh.texture is not None:
         uv_of_corner = np.asarray(mesh.uv_indices, dtype=np.int64)[triangle_corners(mesh)]
         uv = np.einsum("kc,kcd->kd", w, np.asarray(mesh.uvs)[uv_of_corner[tri]])
-        return _bilinear(mesh.texture, uv)
+        return sample_image(mesh.texture, uv).astype(np.float32)
     if mesh.vertex_colors is not None:
         return np.einsum("kc,kcd->kd", w, mesh.vertex_colors[mesh.faces[tri]]).astype(np.float32)
     raise InputError("the mesh has no colour (no texture and no vertex colours)", path=mesh.source_path)
 
 
-def _bilinear(image: np.ndarray, uv: FloatArray) -> FloatArray:
-    """Bilinear lookup at UVs (OBJ convention, wrapping), texel centres at ``(i + 0.5) / size``."""
+def sample_image(image: np.ndarray, uv: FloatArray) -> FloatArray:
+    """Bilinear lookup of an (h, w, c) image at UVs (OBJ convention: ``v = 0`` at the bottom; wrapping).
+
+    Texel centres are at ``((j + 0.5) / w, 1 - (i + 0.5) / h)``. Integer images are scaled to [0, 1] by
+    their type's maximum, float images are returned as they are. Returns (k, c) float64.
+    """
     h, w = image.shape[:2]
-    scale = 1.0 / np.iinfo(image.dtype).max
+    scale = 1.0 / np.iinfo(image.dtype).max if np.issubdtype(image.dtype, np.integer) else 1.0
     x = uv[:, 0] * w - 0.5
     y = (1.0 - uv[:, 1]) * h - 0.5
     x0 = np.floor(x)
@@ -84,7 +88,7 @@ def _bilinear(image: np.ndarray, uv: FloatArray) -> FloatArray:
     y1 = (y0 + 1) % h
     top = image[y0, x0] * (1.0 - fx) + image[y0, x1] * fx
     bottom = image[y1, x0] * (1.0 - fx) + image[y1, x1] * fx
-    return ((top * (1.0 - fy) + bottom * fy) * scale).astype(np.float32)
+    return (top * (1.0 - fy) + bottom * fy) * scale
 
 
 def texel_size_mm(mesh: Mesh) -> float:

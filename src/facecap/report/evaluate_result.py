@@ -77,17 +77,19 @@ def evaluate_result(truth_path: str | Path, result_dir: str | Path, *, frame: st
     InputError
         If frame or vertex counts differ.
     """
-    result_mm, truth_mm, truth = result_and_truth_mm(truth_path, result_dir, frame=frame)
+    opened = read_result(result_dir)
+    result_mm, truth_mm, truth = result_and_truth_mm(truth_path, result_dir, frame=frame, opened=opened)
     names = [str(s) for s in truth["region_names"]] if "region_names" in truth else None
     labels = truth.get("region_labels")
-    faces = read_result(result_dir).mesh.faces  # each error split across and along the true skin
     return evaluate_performance(result_mm, truth_mm, region_labels=labels, region_names=names,
-                                vertex_mask=vertex_mask, faces=faces)
+                                vertex_mask=vertex_mask, faces=opened.mesh.faces)  # split across/along the skin
 
 
-def result_and_truth_mm(truth_path: str | Path, result_dir: str | Path, *,
-                        frame: str = "auto") -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+def result_and_truth_mm(truth_path: str | Path, result_dir: str | Path, *, frame: str = "auto",
+                        opened: Any = None) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
     """The result's frames and the truth's, in mm, in the frame :func:`evaluate_result` compares them in.
+
+    ``opened``: the folder already opened by :func:`~facecap.io.read_result` (None: opened here).
 
     Returns
     -------
@@ -98,7 +100,8 @@ def result_and_truth_mm(truth_path: str | Path, result_dir: str | Path, *,
     if frame not in ("auto", "world", "stabilized"):
         raise InputError(f"frame: expected 'auto', 'world' or 'stabilized', got {frame!r}")
     truth = read_truth(truth_path)
-    opened = read_result(result_dir)
+    if opened is None:
+        opened = read_result(result_dir)
     info = opened.info
     motion_path = Path(result_dir) / "head_motion.npy"
     stabilized = bool(info.get("stabilized", False))

@@ -104,6 +104,17 @@ def _drop_specks(F: IntArray, n: int, *, min_fraction: float = 0.01) -> IntArray
     return F[sizes[face_label] >= min_fraction * F.shape[0]]
 
 
+def _first_hits(V: FloatArray, F: IntArray, tree: Any, origins: FloatArray, d: FloatArray
+                ) -> tuple[np.ndarray, IntArray, FloatArray]:
+    """Parallel rays along ``d``: which hit, the triangle each hit first (0 for a miss), its barycentrics."""
+    hit_face, _, uv = tree.intersect_ray_first(V, F, origins, np.broadcast_to(d, origins.shape).copy())
+    hit = hit_face >= 0
+    fid = np.where(hit, hit_face, 0).astype(np.int64)
+    uv = np.clip(np.nan_to_num(uv), 0.0, 1.0)
+    bary = np.clip(np.stack([1.0 - uv[:, 0] - uv[:, 1], uv[:, 0], uv[:, 1]], axis=1), 0.0, None)
+    return hit, fid, bary / bary.sum(axis=1, keepdims=True)
+
+
 def _range_image(
     pitch: float,
     *,
@@ -125,13 +136,8 @@ def _range_image(
     vs = v.min() + pitch * (offset[1] + np.arange(int(np.ceil((v.max() - v.min()) / pitch)) + 1))
     UU, VV = np.meshgrid(us, vs)  # rows follow e2, columns follow e1
     origins = UU.reshape(-1, 1) * e1 + VV.reshape(-1, 1) * e2 + (depth.min() - 10.0) * d
-    hit_face, _, uv = tree.intersect_ray_first(V, F, origins, np.broadcast_to(d, origins.shape).copy())
-    hit = hit_face >= 0
-    hit[hit] = facing[hit_face[hit]] >= cos_max  # grazing or back-facing first hits give no sample
-    fid = np.where(hit, hit_face, 0).astype(np.int64)
-    uv = np.clip(np.nan_to_num(uv), 0.0, 1.0)
-    bary = np.clip(np.stack([1.0 - uv[:, 0] - uv[:, 1], uv[:, 0], uv[:, 1]], axis=1), 0.0, None)
-    bary /= bary.sum(axis=1, keepdims=True)
+    hit, fid, bary = _first_hits(V, F, tree, origins, d)
+    hit[hit] = facing[fid[hit]] >= cos_max  # grazing or back-facing first hits give no sample
     points = np.einsum("kc,kcd->kd", bary, V[F[fid]])
     if crop_mm > 0 and rim.shape[0] and hit.any():
         sq, _, _ = igl.point_mesh_squared_distance(points[hit], V, rim)
@@ -171,12 +177,7 @@ def _scan_texture(
             cell_near[r - dr + 1, c - dc + 1] = True
     ti, tj = np.nonzero(cell_near[np.arange(H) // s + 1][:, np.arange(W) // s + 1])
     origins = (u0 + tj * t)[:, None] * e1 + (v0 + ti * t)[:, None] * e2 + ((V @ d).min() - 10.0) * d
-    hit_face, _, uv = tree.intersect_ray_first(V, F, origins, np.broadcast_to(d, origins.shape).copy())
-    hit = hit_face >= 0
-    fid = np.where(hit, hit_face, 0).astype(np.int64)
-    uv = np.clip(np.nan_to_num(uv), 0.0, 1.0)
-    bary = np.clip(np.stack([1.0 - uv[:, 0] - uv[:, 1], uv[:, 0], uv[:, 1]], axis=1), 0.0, None)
-    bary /= bary.sum(axis=1, keepdims=True)
+    hit, fid, bary = _first_hits(V, F, tree, origins, d)
     points = np.einsum("kc,kcd->kd", bary[hit], V[F[fid[hit]]])
     colour = capture_colors(skin.albedo_at(fid[hit], bary[hit]), points, seed=capture_seed)
     image = np.zeros((H, W, 3), dtype=np.float32)

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InputError
 from ..io.write_gltf import triangle_corners
+from ..mesh.surface_colors import sample_image
 from ..mesh.uv_raster import UVRaster
 from ..structures import Mesh
 from ..typing import FloatArray, IntArray
@@ -50,16 +51,7 @@ class SkinTexture:
     def albedo_at(self, triangles: IntArray, barycentric: FloatArray) -> FloatArray:
         """(k, 3) albedo at points of the rest surface given by triangle and barycentric coordinates."""
         uv = np.einsum("kc,kcd->kd", barycentric, self.uvs[self.uv_triangles[triangles]])
-        size = self.image.shape[0]
-        x = np.clip(uv[:, 0] * size - 0.5, 0.0, size - 1.0)
-        y = np.clip((1.0 - uv[:, 1]) * size - 0.5, 0.0, size - 1.0)
-        x0 = np.minimum(np.floor(x).astype(np.int64), size - 2)
-        y0 = np.minimum(np.floor(y).astype(np.int64), size - 2)
-        fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-        im = self.image
-        top = im[y0, x0] * (1 - fx) + im[y0, x0 + 1] * fx
-        bottom = im[y0 + 1, x0] * (1 - fx) + im[y0 + 1, x0 + 1] * fx
-        return (top * (1 - fy) + bottom * fy).astype(np.float64)
+        return sample_image(self.image, uv)
 
 
 def bake_skin_albedo(
