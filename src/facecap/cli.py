@@ -500,6 +500,9 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
                         "on (vertex colours too), off [auto]")
     p.add_argument("--refine", action="store_true",
                    help="run the fine-scale (optical flow) registration of section 6.2 (experimental)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes registering scans side by side [every core when the scans hold 200,000 "
+                        "vertices or more in all, else 1]")
     p.add_argument("--out", required=True, help="bases folder")
     _add_overwrite(p, "an earlier bases folder in --out")
     p.set_defaults(func=_cmd_register_scans)
@@ -528,6 +531,9 @@ def _add_scan_commands(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--color-alignment", nargs="?", const="on", default="auto", choices=("auto", "on", "off"),
                    help="slide by skin colour: auto (when the scans and template have colour textures), on, off [auto]")
     p.add_argument("--refine", action="store_true", help="fine-scale registration (experimental)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes registering scans side by side [every core when the scans hold 200,000 "
+                        "vertices or more in all, else 1]")
     _add_output_options(p)
     p.add_argument("--out", required=True, help="output folder (holds plan.json, bases/, animation/)")
     _add_overwrite(p, "an earlier plan.json, bases/ and animation/ in --out")
@@ -556,7 +562,7 @@ def _cmd_register_scans(args: argparse.Namespace) -> int:
                                     scan_unit=args.scan_units, template_unit=args.template_units,
                                     marker_offset_mm=args.marker_offset, refine=args.refine,
                                     template_texture_path=args.template_texture,
-                                    align_colors=_colour_alignment(args.color_alignment),
+                                    align_colors=_colour_alignment(args.color_alignment), workers=args.workers,
                                     progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:
         reg = report["registration_mm"]
@@ -585,7 +591,8 @@ def _cmd_scans_pipeline(args: argparse.Namespace) -> int:
                                scan_unit=args.scan_units, template_path=args.template,
                                template_unit=args.template_units, marker_offset_mm=args.marker_offset,
                                template_texture_path=args.template_texture,
-                               align_colors=_colour_alignment(args.color_alignment), refine=args.refine, **_output_options(args), progress=not args.quiet,
+                               align_colors=_colour_alignment(args.color_alignment), refine=args.refine,
+                               workers=args.workers, **_output_options(args), progress=not args.quiet,
                                overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {Path(args.out)}: plan.json, bases/, animation/ ({report['n_frames']} frames)")

@@ -23,6 +23,30 @@ def test_solves_like_scipy_spsolve(backend):
     np.testing.assert_allclose(A @ x, b, atol=1e-8)
 
 
+@pytest.mark.parametrize("backend", available_backends())
+def test_refactor_solves_the_new_matrix_whether_or_not_its_pattern_is_the_old_one(backend):
+    A = _spd(400, 0)
+    b = np.random.default_rng(1).normal(size=(400, 3))
+    factor = SpdFactor(A, backend=backend)
+    factor.solve(b)
+    same_pattern = A.copy()
+    same_pattern.data *= np.random.default_rng(2).uniform(0.5, 1.5, A.nnz)
+    same_pattern = (same_pattern + same_pattern.T) / 2 + sp.eye(400) * 5.0  # symmetric, definite, pattern unchanged
+    assert same_pattern.nnz == A.nnz
+    i, j = (c[0] for c in sp.triu(same_pattern, k=1).nonzero())
+    fewer = same_pattern.tolil()
+    fewer[i, j] = fewer[j, i] = 0.0  # a sum that cancelled: a non-zero less, within the analysed pattern
+    fewer = fewer.tocsr()
+    fewer.eliminate_zeros()
+    assert fewer.nnz == A.nnz - 2
+    for M in (same_pattern, fewer, _spd(400, 3)):  # then one with other non-zeros
+        factor.refactor(M)
+        np.testing.assert_allclose(factor.solve(b), spsolve(M.tocsc(), b), rtol=1e-8, atol=1e-10)
+    with pytest.raises(InputError):
+        factor.refactor(_spd(10, 4))
+    factor.free()
+
+
 def test_pardiso_is_the_default_where_available():
     assert "pardiso" in available_backends()
     assert SpdFactor(_spd(50, 1)).backend == "pardiso"

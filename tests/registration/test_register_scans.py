@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from facecap._threads import available_cores
 from facecap.registration import register_scans
 from facecap.synth import generate_performance, scan_expression
 from facecap.io.ict_sample import load_ict_sample
@@ -34,3 +35,20 @@ def test_markers_beyond_the_scan_still_place_the_skin_and_quality_is_reported():
     error = np.linalg.norm(basis - truth, axis=1).mean()
     assert error < 0.3 * np.linalg.norm(case.scan.vertices - truth, axis=1).mean()
     assert quality["tangential_motion_mm"] > 0.5 and quality["normal_motion_mm"] > 0.2  # a real expression
+
+
+def test_worker_processes_give_the_bases_one_process_gives():
+    names = load_ict_sample().expression_names
+    weights = np.zeros((3, len(names)))
+    weights[1, names.index("jawOpen")] = 0.4
+    weights[2, [names.index("browInnerUp_L"), names.index("browInnerUp_R")]] = 0.8
+    case = generate_performance(curves=weights, seed=5, n_markers=60, noise_mm=0.0, gap_fraction=0.0,
+                                head_rotation_deg=0.0, head_translation_mm=0.0, headband_markers=0)
+    scans = [scan_expression(case.truth_vertices[t], case.scan.faces, seed=t, target_vertices=6000).mesh for t in (1, 2)]
+    common = dict(template=case.scan, template_markers=case.markers.positions[0], progress=False)
+    frames = case.markers.positions[[1, 2]]
+    alone = register_scans(scans, frames, workers=1, **common)
+    side_by_side = register_scans(scans, frames, workers=2, **common)
+    assert side_by_side.report["workers"] == min(2, available_cores())  # two processes where there are two cores
+    np.testing.assert_allclose(side_by_side.bases, alone.bases, atol=1e-6)
+    np.testing.assert_allclose(side_by_side.registration_mm, alone.registration_mm, atol=1e-9)

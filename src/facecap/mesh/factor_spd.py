@@ -68,6 +68,26 @@ def _new_pardiso_solver() -> Any:
     return pypardiso.PyPardisoSolver(mtype=2)
 
 
+def _within_pattern(a: sp.csr_matrix, pattern: sp.csr_matrix) -> sp.csr_matrix | None:
+    """``a`` stored in ``pattern``'s non-zeros (explicit zeros where ``a`` has none), or None when ``a``
+    has a non-zero outside them. Both have sorted indices. Sums of sparse matrices drop the entries
+    that cancel, so successive systems of one mesh differ by a few stored zeros (13 of 760,779 in a
+    bi-Laplacian at 78k vertices); PARDISO's analysis holds for any subset of its pattern."""
+    if a.shape != pattern.shape:
+        return None
+    if np.array_equal(a.indptr, pattern.indptr) and np.array_equal(a.indices, pattern.indices):
+        return a
+    n = a.shape[1]
+    keys = np.repeat(np.arange(a.shape[0], dtype=np.int64), np.diff(a.indptr)) * n + a.indices
+    known = np.repeat(np.arange(a.shape[0], dtype=np.int64), np.diff(pattern.indptr)) * n + pattern.indices
+    at = np.searchsorted(known, keys)
+    if np.any(at >= known.size) or not np.array_equal(known[np.minimum(at, known.size - 1)], keys):
+        return None
+    data = np.zeros(pattern.nnz)
+    data[at] = a.data
+    return sp.csr_matrix((data, pattern.indices, pattern.indptr), shape=pattern.shape)
+
+
 class SpdFactor:
     """Factor a sparse symmetric positive-definite matrix once, solve many times.
 
@@ -99,6 +119,31 @@ class SpdFactor:
     def __init__(self, A: sp.spmatrix, *, backend: Backend = "auto") -> None:
         if not sp.issparse(A) or A.shape[0] != A.shape[1]:
             raise InputError(f"A: expected a square sparse matrix, got {type(A).__name__} {getattr(A, 'shape', '')}")
+        self._choose_backend(backend)
+        self.n = int(A.shape[0])
+        A = sp.csr_matrix(A, dtype=np.float64)
+        self._impl: Any
+        if self.backend == "pardiso":
+            self._factor_pardiso(A)
+        else:
+            self._factor_scipy(A)
+
+    @classmethod
+    def unfactored(cls, n: int, *, backend: Backend = "auto") -> "SpdFactor":
+        """A factor of an ``n x n`` system yet to come: its first :meth:`refactor` factors it.
+
+        For a loop that factors one matrix after another and keeps one factor
+        for all of them.
+        """
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise InputError(f"n: expected a positive integer, got {n!r}")
+        factor = cls.__new__(cls)
+        factor._choose_backend(backend)
+        factor.n = int(n)
+        factor._impl = None
+        return factor
+
+    def _choose_backend(self, backend: Backend) -> None:
         if backend not in ("auto", "pardiso", "scipy"):
             raise InputError(f"backend: expected one of 'auto', 'pardiso', 'scipy', got {backend!r}")
         have = available_backends()
@@ -109,18 +154,57 @@ class SpdFactor:
                     "pypardiso (MKL PARDISO) is not available; using SciPy's SuperLU, "
                     "which is much slower and uses more memory on large scans",
                     FacecapWarning,
-                    stacklevel=2,
+                    stacklevel=3,
                 )
         elif backend not in have:
             raise InputError(f"backend: {backend!r} is not available here (have {have})")
         self.backend: str = backend
-        self.n = int(A.shape[0])
+
+    def refactor(self, A: sp.spmatrix) -> None:
+        """Factor a new matrix in place of this one, keeping the analysis when the pattern is the same.
+
+        Solvers that iterate (a registration's closest-point rounds, a flow's
+        updates) factor one matrix after another with the same non-zeros and
+        new values. PARDISO's analysis (fill-reducing ordering and symbolic
+        factorisation) is about two thirds of a factorisation of a mesh's
+        bi-Laplacian system (0.27 of 0.40 s at 78k vertices, measured); here
+        only the numeric factorisation runs again, for any matrix whose
+        non-zeros lie within the analysed ones. Any other matrix (or the
+        SciPy backend) is factored from scratch.
+
+        Parameters
+        ----------
+        A : (n, n) scipy.sparse matrix, float64
+            Symmetric positive definite, of this factor's size.
+
+        Raises
+        ------
+        SolverError
+            If the factorisation fails; the factor is then released, as after ``free``.
+        """
+        if not sp.issparse(A) or A.shape != (self.n, self.n):
+            raise InputError(f"A: expected a ({self.n}, {self.n}) sparse matrix, got {getattr(A, 'shape', type(A))}")
         A = sp.csr_matrix(A, dtype=np.float64)
-        self._impl: Any
-        if backend == "pardiso":
-            self._factor_pardiso(A)
-        else:
+        if self.backend != "pardiso":
             self._factor_scipy(A)
+            return
+        upper = sp.triu(A, format="csr")
+        upper.sort_indices()
+        within = None if self._impl is None else _within_pattern(upper, self._impl[1])
+        if within is None:
+            self.free()
+            self._factor_pardiso(A)
+            return
+        solver, upper = self._impl[0], within
+        try:
+            solver.set_phase(22)
+            solver._call_pardiso(upper, np.zeros((self.n, 1), order="F"))
+        except Exception as exc:
+            self.free()
+            raise SolverError(f"sparse factorisation failed: {exc}") from None
+        # pypardiso recognises the factored matrix by its values: solve() must see this one
+        solver.factorized_A = solver._hash_csr_matrix(upper) if upper.nnz > solver.size_limit_storage else upper.copy()
+        self._impl = (solver, upper)
 
     def _factor_pardiso(self, A: sp.csr_matrix) -> None:
         solver = _new_pardiso_solver()
@@ -164,6 +248,8 @@ class SpdFactor:
         -------
         x : float64 array, same shape as ``b``
         """
+        if self._impl is None:
+            raise SolverError("solve: nothing is factored (freed, or an unfactored factor never refactored)")
         b = np.asarray(b, dtype=np.float64)
         if b.shape[0] != self.n:
             raise InputError(f"b: expected {self.n} rows, got {b.shape[0]}")

@@ -52,6 +52,7 @@ def register_planned_scans(
     template_texture_path: str | Path | None = None,
     align_colors: bool | None = None,
     marker_unit: str | None = None,
+    workers: int | None = None,
     progress: bool = True,
     overwrite: bool = False,
 ) -> dict[str, Any]:
@@ -71,12 +72,18 @@ def register_planned_scans(
     (:func:`facecap.markers.check_scan_units`); a given unit they contradict
     stops with an error naming the likely one, ``'auto'`` converts to it.
 
+    ``workers`` processes register the scans side by side; None (default):
+    :func:`facecap.registration.default_workers` (every core for scans of
+    200,000 vertices or more in all, else this process alone). A script that
+    runs this with worker processes needs Python's ``if __name__ ==
+    "__main__":`` guard (they are spawned).
+
     An earlier bases folder in ``out_dir`` is replaced only with
     ``overwrite`` (checked before the registration and again at the end).
     Returns the registration report (also in ``bases.json``, with every
     scan's path as recorded there: final and absolute, or relative to the folder).
     """
-    from ..registration.register_scans import register_scans
+    from ..registration.register_scans import default_workers, register_scans
 
     check_folder_destination(out_dir, marker_file=BASES_MARKER_FILE, overwrite=overwrite)
     take = read_markers(markers_path, unit=marker_unit)
@@ -106,7 +113,7 @@ def register_planned_scans(
         scans, conditioned.positions[frames], template=template,
         template_markers=conditioned.positions[int(conditioning.get("rest_frame", 0))] if template else None,
         marker_offset_mm=marker_offset_mm, refine=refine, template_texture=texture, align_colors=align_colors,
-        progress=progress,
+        workers=default_workers(scans) if workers is None else workers, progress=progress,
     )
     report = {**registered.report, "colour_alignment": f"{'on' if align_colors else 'off'} ({why})",
               "total_s": time.perf_counter() - t,

@@ -36,6 +36,7 @@ def run_scan_workflow(
     template_texture_path: str | Path | None = None,
     align_colors: bool | None = None,
     refine: bool = False,
+    workers: int | None = None,
     exports: Sequence[str] = (),
     write_vertices: bool = True,
     rig_precision: str = "float32",
@@ -58,7 +59,7 @@ def run_scan_workflow(
         An existing plan; default: plan now, as ``out_dir/plan.json``, and expect scans to match it.
     tolerance : float, default 0.003
         The plan's reconstruction tolerance, a fraction of the marker bounding-box diagonal.
-    scan_unit, template_path, template_unit, marker_offset_mm, template_texture_path, align_colors, refine
+    scan_unit, template_path, template_unit, marker_offset_mm, template_texture_path, align_colors, refine, workers
         As :func:`~facecap.pipelines.register_planned_scans` takes them.
     exports, write_vertices, rig_precision, export_options
         As :func:`~facecap.pipelines.blend_take` takes them.
@@ -87,7 +88,7 @@ def run_scan_workflow(
     register_planned_scans(plan, markers_path, scan_paths, out / "bases", template_path=template_path,
                            scan_unit=scan_unit, template_unit=template_unit, marker_offset_mm=marker_offset_mm,
                            refine=refine, template_texture_path=template_texture_path, align_colors=align_colors,
-                           progress=progress, overwrite=overwrite)
+                           workers=workers, progress=progress, overwrite=overwrite)
     return blend_take(out / "bases", markers_path, out / "animation", exports=exports, write_vertices=write_vertices,
                       rig_precision=rig_precision, export_options=export_options, progress=progress,
                       overwrite=overwrite)

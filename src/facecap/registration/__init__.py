@@ -61,6 +61,7 @@ from .register_scans import (
     DEFAULT_REST_WEIGHT,
     TEMPLATE_DEFORMATION_WEIGHT,
     RegisteredScans,
+    default_workers,
     register_scans,
 )
 from .register_template_to_scan import DEFAULT_CLOSEST_POINT_WEIGHTS, TemplateRegistration, register_template_to_scan
@@ -92,6 +93,7 @@ __all__ = [
     "DEFAULT_ALBEDO_ITERATIONS",
     "UNSEEN_ANCHOR",
     "register_scans",
+    "default_workers",
     "RegisteredScans",
     "DEFAULT_REST_WEIGHT",
     "TEMPLATE_DEFORMATION_WEIGHT",

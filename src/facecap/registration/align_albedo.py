@@ -8,7 +8,7 @@ import cv2
 import igl
 import numpy as np
 
-from ..mesh.factor_spd import Backend
+from ..mesh.factor_spd import Backend, SpdFactor
 from ..errors import InputError
 from ..mesh.median_edge_length import median_edge_length
 from ..mesh.surface_colors import has_colors, surface_colors, texel_size_mm
@@ -204,9 +204,6 @@ def align_albedo(
     first = np.full(Vw.shape[0], -1, dtype=np.int64)
     first[back[::-1]] = np.arange(back.size)[::-1]  # one original vertex per welded vertex
     rest_w = rest[first]
-    texture_tree = igl.AABB()
-    texture_tree.init(texture.vertices, texture.faces)
-
     edge = median_edge_length(Vw, Fw)
     # colour textures resolve the skin at their texel size; vertex colours at about the template's sampling
     textured = scan.texture is not None and texture.texture is not None
@@ -230,31 +227,52 @@ def align_albedo(
     tree.init(scan.vertices, scan.faces)
     on_scan = np.sqrt(tree.squared_distance(scan.vertices, scan.faces, Vw)[0]) <= snap
 
+    reach = max(snap, 2.0 * edge)
+    # The template's colour at a point of the template: straight from its texture when the texture
+    # mesh is the template itself (the default: the template's own scan), else through the closest
+    # point of the separate texture mesh (a retopologised template with the neutral's own scan).
+    own_texture = (texture.n_vertices == rest.shape[0] and texture.faces.shape == np.shape(F)
+                   and np.array_equal(texture.faces, np.asarray(F)) and np.allclose(texture.vertices, rest, atol=1e-6))
+    texture_tree = None
+    if not own_texture:
+        texture_tree = igl.AABB()
+        texture_tree.init(texture.vertices, texture.faces)
+
     V = Vw.copy()
     confidence = np.zeros(V.shape[0])
     mismatch: list[float] = []
+    src = source_valid = None
+    factor = SpdFactor.unfactored(V.shape[0], backend=backend)  # every round's update: one analysis
     for _ in range(iterations):
         pixels = cmap.project(V)
         raster = cmap.rasterise(Fw, pixels=pixels)
-        covered = raster.covered
-        rows, cols = np.nonzero(covered)
-        centres = np.stack([cols, rows], axis=1).astype(np.float64)
-        points, found = raster.surface_points(centres, V)
-        points = np.where(found[:, None], points, 0.0)
-        reach = max(snap, 2.0 * edge)
-        colour, near = _luma_at(points, tree, scan, reach)
-        # the same pixels on the template: its rest surface under them, coloured by its texture scan
-        rest_points, _ = raster.surface_points(centres, rest_w)
-        rest_points = np.where(found[:, None], rest_points, 0.0)
-        reference, on_texture = _luma_at(rest_points, texture_tree, texture, reach)
-        seen = found & near & on_texture
-        source = np.zeros(covered.shape)
-        target = np.zeros(covered.shape)
-        valid = np.zeros(covered.shape, dtype=bool)
-        source[rows, cols] = np.where(seen, colour, 0.0)
-        target[rows, cols] = np.where(seen, reference, 0.0)
-        valid[rows, cols] = seen
-        src = _band(source, valid, fine_px, coarse_px)
+        rows, cols = np.nonzero(raster.covered)
+        tri, bary = raster.face[rows, cols], raster.barycentric[rows, cols]
+        if src is None:
+            # The scan's colour under each pixel. The registration put the mesh on the scan and every
+            # round slides it along the scan, so the scan's surface under a pixel, and its colour, stay
+            # the same from round to round: looked up and band-passed once.
+            points = np.einsum("kc,kcj->kj", bary, V[Fw[tri]])
+            colour, near = _luma_at(points, tree, scan, reach)
+            source = np.zeros(raster.face.shape)
+            source_valid = np.zeros(raster.face.shape, dtype=bool)
+            source[rows, cols] = np.where(near, colour, 0.0)
+            source_valid[rows, cols] = near
+        # the same pixels on the template: its rest surface under them, coloured by its texture
+        if own_texture:
+            reference = _luminance(surface_colors(texture, tri, bary).astype(np.float64))
+            on_texture = np.ones(tri.size, dtype=bool)
+        else:
+            rest_points = np.einsum("kc,kcj->kj", bary, rest_w[Fw[tri]])
+            reference, on_texture = _luma_at(rest_points, texture_tree, texture, reach)
+        target = np.zeros(raster.face.shape)
+        valid = np.zeros(raster.face.shape, dtype=bool)
+        valid[rows, cols] = on_texture
+        valid &= source_valid
+        target[rows, cols] = reference
+        target[~valid] = 0.0
+        if src is None:
+            src = _band(np.where(valid, source, 0.0), valid, fine_px, coarse_px)
         tgt = _band(target, valid, fine_px, coarse_px)
         mismatch.append(float(np.abs(src - tgt)[valid].mean()) if valid.any() else float("nan"))
         flow = optical_flow(tgt, src, method="dis")
@@ -270,8 +288,13 @@ def align_albedo(
         # what the scan does not show stays where the large-scale registration put it (from the
         # markers), rather than being dragged along by the Laplacian of its moving neighbours
         confidence = np.where(movable, confidence, 0.0)
-        V = regularised_update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), scan, on_scan, alpha=alpha,
-                               scan_tree=tree, backend=backend)
+        try:
+            V = regularised_update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), scan, on_scan,
+                                   alpha=alpha, scan_tree=tree, factor=factor)
+        except BaseException:
+            factor.free()
+            raise
+    factor.free()
     out = V[back]
     return AlbedoAlignment(vertices=out, moved_mm=np.linalg.norm(out - V0, axis=1), confidence=confidence[back],
                            mismatch_by_round=mismatch)

@@ -5,15 +5,17 @@ from __future__ import annotations
 import time
 import warnings
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any, Sequence
 
 import igl
 import numpy as np
-from tqdm.auto import tqdm
 
 from .fit_bases_to_markers import fit_bases_to_markers
 from .smooth_marker_changes import smooth_marker_changes
 from .marker_places_from_bases import marker_places_from_bases
+from .._processes import process_map
+from .._threads import available_cores
 from ..deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM
 from ..errors import FacecapWarning, InputError
 from ..markers.rigid_fit import rigid_fit
@@ -23,7 +25,7 @@ from .register_markers_to_scan import MarkerRegistration, register_markers_to_sc
 from .register_template_to_scan import register_template_to_scan
 from .rigid_icp import rigid_icp
 
-__all__ = ["RegisteredScans", "register_scans", "DEFAULT_REST_WEIGHT",
+__all__ = ["RegisteredScans", "register_scans", "default_workers", "DEFAULT_REST_WEIGHT",
            "TEMPLATE_DEFORMATION_WEIGHT"]
 
 DEFAULT_REST_WEIGHT = 3e-4
@@ -33,6 +35,7 @@ TEMPLATE_DEFORMATION_WEIGHT = 0.01
 """Marker displacement weight when the markers are placed on the template (see ``register_scans``)."""
 
 _CONSENSUS_BASES = 3  # colour-aligned bases needed to place the markers on the template by their consensus
+_PROCESSES_FROM_VERTICES = 200_000  # scans holding fewer vertices in all register in seconds: no worker processes
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +132,7 @@ def register_scans(
     rest_weight: float = DEFAULT_REST_WEIGHT,
     template_deformation_weight: float = TEMPLATE_DEFORMATION_WEIGHT,
     smooth_marker_fit: bool | None = None,
+    workers: int = 1,
     progress: bool = True,
 ) -> RegisteredScans:
     """Register a plan's scans (Huang et al. 2011, sections 5, 6.1, 6.2 and 7).
@@ -203,6 +207,15 @@ def register_scans(
         bases of a tuned take whose scans are the frames performed again: 0.258 -> 0.248 mm, the
         exact fit 0.258, no fit 0.280); without colour the markers are the only cue along the skin
         and their full pull was worth a little more (0.335 exact, 0.340 smoothed).
+    workers : int, default 1
+        Processes that register scans side by side (each scan's markers,
+        template registration and colour alignment are independent of the
+        others'); capped at the cores this process may use. 1: all in this
+        process. The results do not depend on it. Worker processes are
+        spawned: a script that asks for them needs Python's
+        ``if __name__ == "__main__":`` guard.
+        :func:`~facecap.pipelines.register_planned_scans` (the command) picks
+        :func:`default_workers`.
     progress : bool, default True
 
     Returns
@@ -220,14 +233,43 @@ def register_scans(
         raise InputError(f"--scans: the plan has {X.shape[0] if X.ndim == 3 else '?'} frames but {K} scans were given")
     if template is not None and template_markers is None:
         raise InputError("a template needs the markers of a frame matching its expression (template_markers)")
+    if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
+        raise InputError(f"workers: expected a positive integer, got {workers!r}")
+    with process_map(min(int(workers), K), progress=progress) as each_scan:
+        return _register_scans(scans, X, each_scan, template, template_markers, marker_offset_mm, refine,
+                               template_texture, align_colors, flag_threshold_mm, rest_weight,
+                               template_deformation_weight, smooth_marker_fit)
+
+
+def default_workers(scans: Sequence[Mesh]) -> int:
+    """Worker processes worth starting for ``scans``: every core this process may use when they hold
+    200,000 vertices or more in all, else 1. Below that the whole registration takes seconds, and a worker
+    costs about one to start (it imports the package); above it each scan takes seconds (20 scans of 78k
+    vertices with colour textures: see benchmarks/RESULTS.md)."""
+    return available_cores() if sum(scan.n_vertices for scan in scans) >= _PROCESSES_FROM_VERTICES else 1
+
+
+def _align_colours(vertices: np.ndarray, scan: Mesh, *, faces: np.ndarray, rest: np.ndarray, texture: Mesh,
+                   axis: np.ndarray) -> Any:
+    """:func:`~facecap.registration.align_albedo.align_albedo` of one registered scan (a worker's task)."""
+    from .align_albedo import align_albedo
+
+    return align_albedo(vertices, faces, rest, texture, scan, axis=axis)
+
+
+def _register_scans(scans: Sequence[Mesh], X: np.ndarray, each_scan: Any, template: Mesh | None,
+                    template_markers: np.ndarray | None, marker_offset_mm: float, refine: bool,
+                    template_texture: Mesh | None, align_colors: bool, flag_threshold_mm: float, rest_weight: float,
+                    template_deformation_weight: float, smooth_marker_fit: bool | None) -> RegisteredScans:
+    """:func:`register_scans` after its checks, the per-scan stages through ``each_scan`` (a ProcessMap)."""
+    K = len(scans)
     timings: dict[str, float] = {}
-    report: dict[str, Any] = {"scans": []}
+    report: dict[str, Any] = {"scans": [], "workers": each_scan.workers}
     flagged: set[int] = set()
     t = time.perf_counter()
-    registrations = []
-    for i, scan in enumerate(tqdm(scans, desc="markers -> scans", disable=not progress, leave=False)):
-        reg = register_markers_to_scan(X[i], scan, subspace=X, marker_offset_mm=marker_offset_mm)
-        registrations.append(reg)
+    registrations = each_scan(partial(register_markers_to_scan, subspace=X, marker_offset_mm=marker_offset_mm),
+                              [(X[i], scan) for i, scan in enumerate(scans)], desc="markers -> scans")
+    for i, (scan, reg) in enumerate(zip(scans, registrations)):
         matched = int((~reg.unmatched).sum())
         entry = {
             "scan": scan.source_path or f"scan {i}",
@@ -276,15 +318,16 @@ def register_scans(
     marker_normals_rest = np.einsum("mj,mjc->mc", marker_weights, tmpl_normals[np.maximum(marker_vertices, 0)])
     marker_normals_rest /= np.maximum(np.linalg.norm(marker_normals_rest, axis=1, keepdims=True), 1e-12)
     skins = np.empty((K, X.shape[1], 3))
-    for i in tqdm(range(K), desc="template -> scans", disable=not progress, leave=False):
-        reg = registrations[i]
-        skin = (reg.surface_points - reg.translation) @ reg.rotation  # skin under each marker, mocap frame
-        skins[i] = skin
+    targets = []
+    for i, reg in enumerate(registrations):
+        skins[i] = (reg.surface_points - reg.translation) @ reg.rotation  # skin under each marker, mocap frame
         usable = on_template & ~reg.unmatched
         off_scan = X[i] - marker_offset_mm * marker_normals_rest
-        targets = np.where(usable[:, None], skin, off_scan)[on_template]
-        result = register_template_to_scan(tmpl_mocap, marker_vertices[on_template], marker_weights[on_template],
-                                           scans_mocap[i], targets, rest_weight=rest_weight)
+        targets.append(np.where(usable[:, None], skins[i], off_scan)[on_template])
+    results = each_scan(partial(register_template_to_scan, tmpl_mocap, marker_vertices[on_template],
+                                marker_weights[on_template], rest_weight=rest_weight),
+                        list(zip(scans_mocap, targets)), desc="template -> scans")
+    for i, result in enumerate(results):
         registered[i] = result.vertices
         matched[i] = result.matched
         distances[i] = result.mean_distance_mm
@@ -293,8 +336,6 @@ def register_scans(
     timings["large_scale_registration_s"] = time.perf_counter() - t
 
     if align_colors:
-        from .align_albedo import align_albedo
-
         texture = _template_texture(template_texture, tmpl_mocap,
                                     None if template_markers is None else np.asarray(template_markers, dtype=np.float64),
                                     X, marker_offset_mm, template_deformation_weight)
@@ -304,8 +345,9 @@ def register_scans(
 
         t = time.perf_counter()
         up = output_from_mocap[:3, :3].T @ np.array([0.0, 1.0, 0.0])
-        for i in tqdm(range(K), desc="colour alignment", disable=not progress, leave=False):
-            aligned = align_albedo(registered[i], template.faces, tmpl_mocap.vertices, texture, scans_mocap[i], axis=up)
+        alignments = each_scan(partial(_align_colours, faces=template.faces, rest=tmpl_mocap.vertices, texture=texture,
+                                       axis=up), list(zip(registered, scans_mocap)), desc="colour alignment")
+        for i, aligned in enumerate(alignments):
             registered[i] = aligned.vertices
             report["scans"][i]["colour_alignment_moved_mm"] = {
                 "mean": float(aligned.moved_mm.mean()), "max": float(aligned.moved_mm.max())}

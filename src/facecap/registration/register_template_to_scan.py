@@ -168,39 +168,41 @@ def register_template_to_scan(
     # a tiny identity term keeps the system definite where L and C leave translations free
     eps = 1e-9 * max(float(base.diagonal().mean()), 1e-12)
 
-    def solve(extra_diag: np.ndarray, extra_rhs: np.ndarray) -> np.ndarray:
-        A = (base + sp.diags(extra_diag + eps)).tocsr()
-        factor = SpdFactor(A, backend=backend)
-        d = factor.solve(base_rhs + extra_rhs + eps * D)
-        factor.free()
-        return d
+    # every round's matrix has the same non-zeros (a diagonal changes): one analysis for all of them
+    factor = SpdFactor.unfactored(n, backend=backend)
 
-    D = S.copy()
-    D = solve(np.zeros(n), np.zeros((n, 3)))
+    def solve(extra_diag: np.ndarray, extra_rhs: np.ndarray) -> np.ndarray:
+        factor.refactor((base + sp.diags(extra_diag + eps)).tocsr())
+        return factor.solve(base_rhs + extra_rhs + eps * D)
 
     scan_V, scan_F = scan.vertices, scan.faces
-    scan_normals = igl.per_face_normals(scan_V, scan_F, np.array([0.0, 0.0, 1.0]))
+    scan_tree = igl.AABB()  # one tree for the scan's every closest-point query
+    scan_tree.init(scan_V, scan_F)
     boundary_vertex = np.zeros(scan.n_vertices, dtype=bool)
     boundary_vertex[np.unique(igl.boundary_facets(scan_F)[0])] = True
     on_rim = boundary_vertex[scan_F].any(axis=1)
     cos_limit = np.cos(np.deg2rad(max_normal_angle_deg))
 
-    flipped = _scan_normals_flipped(D, Fs, scan_V, scan_F, scan_normals)
-    # the scan's normal at a closest point interpolates its vertex normals: a face normal of a
-    # dense noisy scan tilts by several degrees, which a tight agreement limit would punish
-    scan_vertex_normals = igl.per_vertex_normals(scan_V, scan_F) * (-1.0 if flipped else 1.0)
-
+    D = S.copy()
     matched = np.zeros(n, dtype=bool)
-    distance = np.full(n, np.nan)
-    for w3 in closest_point_weights:
-        sq, tri, cp = igl.point_mesh_squared_distance(D, scan_V, scan_F)
-        smooth = interpolated_normals(cp, scan_F[tri], scan_V, scan_vertex_normals)
-        normals = igl.per_vertex_normals(D, Fs)
-        agree = np.einsum("ij,ij->i", normals, smooth) >= cos_limit  # NaN compares False: unusable
-        matched = (np.sqrt(sq) <= max_distance_mm) & agree & ~on_rim[tri]
-        weight = np.where(matched, w3, 0.0)
-        D = solve(weight, weight[:, None] * cp)
-    sq, tri, _ = igl.point_mesh_squared_distance(D, scan_V, scan_F)
+    try:
+        D = solve(np.zeros(n), np.zeros((n, 3)))
+        sq, tri, cp = scan_tree.squared_distance(scan_V, scan_F, D)
+        scan_face_normals = igl.per_face_normals(scan_V, scan_F, np.array([0.0, 0.0, 1.0]))
+        flipped = _scan_normals_flipped(D, Fs, np.sqrt(sq), tri, scan_face_normals)
+        # the scan's normal at a closest point interpolates its vertex normals: a face normal of a
+        # dense noisy scan tilts by several degrees, which a tight agreement limit would punish
+        scan_vertex_normals = igl.per_vertex_normals(scan_V, scan_F) * (-1.0 if flipped else 1.0)
+        for w3 in closest_point_weights:
+            smooth = interpolated_normals(cp, scan_F[tri], scan_V, scan_vertex_normals)
+            normals = igl.per_vertex_normals(D, Fs)
+            agree = np.einsum("ij,ij->i", normals, smooth) >= cos_limit  # NaN compares False: unusable
+            matched = (np.sqrt(sq) <= max_distance_mm) & agree & ~on_rim[tri]
+            weight = np.where(matched, w3, 0.0)
+            D = solve(weight, weight[:, None] * cp)
+            sq, tri, cp = scan_tree.squared_distance(scan_V, scan_F, D)
+    finally:
+        factor.free()
     distance = np.where(matched, np.sqrt(sq), np.nan)
     marker_residual = np.linalg.norm(C @ D - targets, axis=1)
     full_residual = np.full(seen.size, np.nan)
@@ -215,11 +217,11 @@ def register_template_to_scan(
     )
 
 
-def _scan_normals_flipped(D: np.ndarray, F: np.ndarray, scan_V: np.ndarray, scan_F: np.ndarray,
+def _scan_normals_flipped(D: np.ndarray, F: np.ndarray, distance: np.ndarray, tri: np.ndarray,
                           scan_normals: np.ndarray) -> bool:
-    """True when most close correspondences see the scan's normals opposite to the template's."""
-    sq, tri, _ = igl.point_mesh_squared_distance(D, scan_V, scan_F)
-    close = np.sqrt(sq) < np.percentile(np.sqrt(sq), 50) + 1e-9
+    """True when most close correspondences (``distance``, ``tri``: each vertex's closest scan point)
+    see the scan's face normals opposite to the template's."""
+    close = distance < np.percentile(distance, 50) + 1e-9
     normals = igl.per_vertex_normals(D, F)
     dots = np.einsum("ij,ij->i", normals[close], scan_normals[tri[close]])
     return bool(np.median(dots) < 0)

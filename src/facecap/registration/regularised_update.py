@@ -36,6 +36,7 @@ def regularised_update(
     constraint_weight: float = 100.0,
     scan_tree: Any = None,
     backend: Backend = "auto",
+    factor: SpdFactor | None = None,
 ) -> FloatArray:
     """Move a mesh lying on a scan by a displacement field, smoothly, and put it back on the scan (eq. 11).
 
@@ -77,6 +78,11 @@ def regularised_update(
         default built here.
     backend : {'auto', 'pardiso', 'scipy'}
         Sparse solver (:class:`~facecap.mesh.factor_spd.SpdFactor`).
+    factor : SpdFactor, optional
+        A factor to re-use (:meth:`~facecap.mesh.factor_spd.SpdFactor.refactor`) instead of
+        factoring anew: a caller updating the same mesh many times keeps one, so that the
+        system's analysis, the same for every update, runs once. It is left holding this
+        update's system; the caller frees it. Default: a factor of this call's own, freed.
 
     Returns
     -------
@@ -152,7 +158,7 @@ def regularised_update(
         scan_tree = igl.AABB()
         scan_tree.init(scan.vertices, scan.faces)
     return _update(V, F, dv, confidence, alpha, pulls, weight, scan_tree, (scan.vertices, scan.faces), on_scan,
-                   backend)
+                   backend, factor)
 
 
 def _as_array(x: Any, shape: tuple[int, ...], name: str) -> FloatArray:
@@ -168,7 +174,7 @@ def _as_array(x: Any, shape: tuple[int, ...], name: str) -> FloatArray:
 
 def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, alpha: float,
             constraints: list[tuple[int, FloatArray]], weight: float, tree: Any, scan: tuple[FloatArray, IntArray],
-            on_scan: BoolArray, backend: Backend) -> FloatArray:
+            on_scan: BoolArray, backend: Backend, kept: SpdFactor | None) -> FloatArray:
     """Eq. 11 (confidence-weighted) plus constraints, then back onto the scan, without flipping triangles."""
     n = V.shape[0]
     before = face_normals(V, F)
@@ -182,7 +188,11 @@ def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, 
         diag[j] += weight
         extra[j] += weight * p
     A = (sp.diags(diag) + alpha * LtL).tocsr()
-    factor = SpdFactor(A, backend=backend)
+    if kept is None:
+        factor = SpdFactor(A, backend=backend)
+    else:
+        factor = kept
+        factor.refactor(A)
     base = alpha * (LtL @ V) + extra
     step = np.ones(n)
     vertex_faces = sp.csr_matrix((np.ones(F.size), (F.ravel(), np.repeat(np.arange(F.shape[0]), 3))),
@@ -199,7 +209,8 @@ def _update(V: FloatArray, F: IntArray, dv: FloatArray, confidence: FloatArray, 
                 ring = (vertex_faces @ (vertex_faces[ring].sum(axis=0).A1 > 0)) > 0
             step[ring] = 0.0
     finally:
-        factor.free()
+        if kept is None:
+            factor.free()
     # still flipped: put those triangles' vertices (and one ring) back where they were, until none is
     for _ in range(_MAX_REVERTS):
         stuck = vertex_faces[:, flipped].sum(axis=1).A1 > 0
