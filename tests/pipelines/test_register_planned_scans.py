@@ -2,6 +2,8 @@
 
 import json
 
+import pytest
+
 from facecap.cli import main
 
 
@@ -25,6 +27,7 @@ def test_bad_inputs_are_clear_errors(scan_workflow, capsys):
 def test_colour_alignment_is_chosen_when_every_scan_and_the_template_show_the_skin():
     import numpy as np
 
+    from facecap.errors import FacecapWarning
     from facecap.pipelines import colour_alignment_choice
     from facecap.structures import Mesh
 
@@ -37,8 +40,15 @@ def test_colour_alignment_is_chosen_when_every_scan_and_the_template_show_the_sk
     assert colour_alignment_choice(None, [textured, textured], textured, None)[0] is True
     assert colour_alignment_choice(None, [textured, textured], None, None)[0] is True  # the first scan is the template
     assert colour_alignment_choice(None, [textured], bare, textured)[0] is True  # --template-texture
-    assert colour_alignment_choice(None, [textured, coloured], textured, None)[0] is False
-    assert colour_alignment_choice(None, [textured], bare, None)[0] is False
+    # some textured, some not (a texture lost on the way, UVs on one point): off, and said so
+    flat = Mesh(V, F, texture=np.zeros((2, 2, 3), np.uint8), uvs=np.full((3, 2), 0.3), uv_indices=F.ravel(),
+                source_path="scan_07.obj")
+    for scans, template, named in (([textured, coloured], textured, "scan 1"), ([textured], bare, "the template"),
+                                   ([textured, flat, bare], textured, "scan_07.obj")):
+        with pytest.warns(FacecapWarning, match=f"colour alignment off: {named}: .* geometry alone"):
+            on, why = colour_alignment_choice(None, scans, template, None)
+        assert on is False and why.startswith(named)
+    assert "cover no texels" in why and "1 more" in why
     assert colour_alignment_choice(None, [coloured], coloured, None) == (False, "the scans or the template have no "
                                                                         "colour texture")
     assert colour_alignment_choice(True, [coloured], coloured, None) == (True, "asked for")

@@ -9,16 +9,18 @@ Huang et al. 2011, sections 5-7), and the bases folder written (:mod:`facecap.io
 from __future__ import annotations
 
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Sequence
 
-from ..errors import InputError
+from ..errors import FacecapWarning, InputError
 from ..io.atomic_write import check_folder_destination, recorded_path
 from ..io.read_markers import read_markers
 from ..io.read_mesh import read_mesh
 from ..io.registered_scans import BASES_MARKER_FILE, CONDITIONED_TAKE_FILE, write_registered_scans
 from ..io.scan_plan import read_scan_plan
 from ..markers.check_scan_units import check_scan_units
+from ..mesh.surface_colors import texel_size_mm
 from ..structures import Mesh
 from .plan_scans import conditioned_take_path
 from .replay_conditioning import replay_conditioning
@@ -26,16 +28,42 @@ from .replay_conditioning import replay_conditioning
 __all__ = ["register_planned_scans", "colour_alignment_choice"]
 
 
+def _why_no_texture(mesh: Mesh) -> str | None:
+    """None when ``mesh``'s colour texture can be aligned to, else why it cannot."""
+    if mesh.texture is None:
+        return "no colour texture"
+    try:
+        texel_size_mm(mesh)
+    except InputError as exc:
+        return exc.message
+    return None
+
+
 def colour_alignment_choice(asked: bool | None, scans: Sequence[Mesh], template: Mesh | None,
                             texture: Mesh | None) -> tuple[bool, str]:
     """Whether to align by colour, and why: ``asked`` if given, else when every scan and the colour
-    source (``texture``, else ``template``, else the first scan, the template then) have a texture."""
+    source (``texture``, else ``template``, else the first scan, the template then) have a usable texture.
+
+    When some have one and others not (a texture lost on the way, UVs that cover no texels), colour
+    alignment is off and a :class:`~facecap.errors.FacecapWarning` names the first mesh without,
+    so that the fallback to geometry alone is not silent.
+    """
     if asked is not None:
         return asked, "asked for" if asked else "turned off"
     source = texture if texture is not None else (template if template is not None else scans[0])
-    if all(s.texture is not None for s in scans) and source.texture is not None:
+    meshes = [source, *scans] if source is not scans[0] else list(scans)
+    missing = [(mesh, why) for mesh in meshes if (why := _why_no_texture(mesh)) is not None]
+    if not missing:
         return True, "every scan and the template have a colour texture"
-    return False, "the scans or the template have no colour texture"
+    if len(missing) == len(meshes):
+        return False, "the scans or the template have no colour texture"
+    mesh, why = missing[0]
+    name = mesh.source_path or ("the template" if mesh is source else f"scan {[m is mesh for m in scans].index(True)}")
+    more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+    reason = f"{name}: {why}{more}, where the others have a colour texture"
+    warnings.warn(f"colour alignment off: {reason}; every scan is registered by its geometry alone",
+                  FacecapWarning, stacklevel=2)
+    return False, reason
 
 
 def register_planned_scans(

@@ -233,6 +233,14 @@ def register_scans(
         raise InputError(f"--scans: the plan has {X.shape[0] if X.ndim == 3 else '?'} frames but {K} scans were given")
     if template is not None and template_markers is None:
         raise InputError("a template needs the markers of a frame matching its expression (template_markers)")
+    if align_colors:  # refused before any work, naming the first mesh without colour
+        source = template_texture if template_texture is not None else (template if template is not None else None)
+        for i, mesh in enumerate(scans if source is None else [source, *scans]):
+            if not has_colors(mesh):
+                name = "template_texture" if mesh is template_texture else ("template" if mesh is template else
+                                                                            f"scan {i - (source is not None)}")
+                raise InputError(f"align_colors: {name} has no colour (a texture or vertex colours); the scans and "
+                                 "the template (or template_texture) need one", path=mesh.source_path)
     if isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1:
         raise InputError(f"workers: expected a positive integer, got {workers!r}")
     with process_map(min(int(workers), K), progress=progress) as each_scan:
