@@ -551,7 +551,9 @@ def _cmd_plan_scans(args: argparse.Namespace) -> int:
                       plot_path=out.with_suffix(".png"), progress=not args.quiet, overwrite=args.overwrite)
     if not args.quiet:
         print(f"wrote {out}: scan {len(plan.frames)} expressions, frames {', '.join(map(str, plan.frames))} "
-              f"(error {plan.error_after_each[-1]:.3f} mm, tolerance {plan.tolerance_mm:.3f} mm)")
+              f"(markers rebuilt to {plan.worst_frame_after_each[-1]:.3f} mm in the worst frame, "
+              f"{plan.error_after_each[-1]:.3f} mm RMS; tolerance {plan.tolerance_mm:.3f} mm"
+              f"{'' if plan.converged else ', not met'})")
     return 0
 
 

@@ -9,10 +9,12 @@ scan workflow goes on with :func:`~facecap.pipelines.register_planned_scans` and
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any, Sequence
 
 from ..blendshapes.select_scan_frames import ScanPlan, select_scan_frames
+from ..errors import FacecapWarning
 from ..io.atomic_write import check_file_destination
 from ..io.conditioned_take import file_sha256, write_conditioned_take
 from ..io.read_markers import read_markers
@@ -60,7 +62,11 @@ def plan_scans(
     tolerance : float, default 0.003
         Reconstruction tolerance as a fraction of the marker bounding-box diagonal.
     max_frames : int, optional
-        Stop after this many frames even if the tolerance is not met.
+        Stop after this many frames even if the tolerance is not met. Then
+        the plan says what the cap costs (``cap`` in ``plan.json``, and a
+        warning): the selection run on, up to four times the cap, finds how
+        many scans the tolerance needs and the error with them, beside the
+        error at the cap.
     rest_frame : int, default 0
     stabilize : bool or sequence of str, default True
         Head motion must be removed before choosing expressions (otherwise
@@ -103,14 +109,53 @@ def plan_scans(
         conditioned.positions, tolerance=tolerance, max_frames=max_frames, rate=take.rate,
         first_frame=take.first_frame, progress=progress,
     )
+    # a zero tolerance asks for exactly max_frames scans: nothing to say about the cap then
+    cap = None if plan.converged or max_frames is None or tolerance <= 0 else _cost_of_the_cap(plan, conditioned.positions, tolerance,
+                                                                              int(max_frames), progress)
     saved = conditioned_take_path(plan_path)
     conditioning.update(stable_markers=list(conditioned.stable_labels), conditioned_take=saved.name,
                         source_sha256=file_sha256(markers_path))
     write_conditioned_take(saved, conditioned, labels=take.labels, rate=take.rate, settings=conditioning,
                            source_sha256=conditioning["source_sha256"])
-    write_scan_plan(plan_path, plan.to_dict(), conditioning=conditioning, source=str(markers_path))
+    write_scan_plan(plan_path, {**plan.to_dict(), **({} if cap is None else {"cap": cap})}, conditioning=conditioning,
+                    source=str(markers_path))
     if plot_path is not None:
         from ..report.plot_scan_selection import plot_scan_selection
 
         plot_scan_selection(plan, plot_path)
     return plan
+
+
+_CAP_LOOK_AHEAD = 4  # how far past a --max-scans cap the plan looks for the scans its tolerance needs
+
+
+def _cost_of_the_cap(plan: ScanPlan, positions: Any, tolerance: float, max_frames: int,
+                     progress: bool) -> dict[str, Any]:
+    """What stopping at ``max_frames`` costs: the errors there, and the scans the tolerance needs (a warning says it).
+
+    Algorithm 1 is greedy, so the frames it adds past the cap extend the capped plan: the uncapped run
+    shows what the next scans would have bought.
+    """
+    ahead = select_scan_frames(positions, tolerance=tolerance, max_frames=_CAP_LOOK_AHEAD * max_frames,
+                               progress=progress)
+    needed = len(ahead.frames) if ahead.converged else None
+    cap = {
+        "max_scans": max_frames,
+        "rms_error_at_cap_mm": float(plan.error_after_each[-1]),
+        "worst_frame_error_at_cap_mm": float(plan.worst_frame_after_each[-1]),
+        "tolerance_mm": float(plan.tolerance_mm),
+        "scans_for_tolerance": needed,
+        "looked_up_to_scans": len(ahead.frames),
+        "rms_error_after_each_uncapped_mm": [float(e) for e in ahead.error_after_each],
+        "worst_frame_error_after_each_uncapped_mm": [float(e) for e in ahead.worst_frame_after_each],
+    }
+    if needed is not None:
+        beyond = (f"the tolerance needs {needed} scans (worst frame {ahead.worst_frame_after_each[-1]:.3f} mm "
+                  f"with them)")
+    else:
+        beyond = (f"{len(ahead.frames)} scans still miss it (worst frame {ahead.worst_frame_after_each[-1]:.3f} mm; "
+                  "a larger tolerance, or a take with fewer distinct expressions)")
+    warnings.warn(f"--max-scans {max_frames} stops short of the tolerance: the worst frame is rebuilt to "
+                  f"{plan.worst_frame_after_each[-1]:.3f} mm from the markers where {plan.tolerance_mm:.3f} mm is "
+                  f"asked; {beyond}", FacecapWarning, stacklevel=3)
+    return cap
