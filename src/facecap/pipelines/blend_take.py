@@ -71,7 +71,8 @@ def blend_take(
     head_motion = _head_motion(capture_motion, folder["output_from_mocap"], rest_frame)
     frames = folder["plan"]["frames"]
     weights_csv = _weights_csv(weights, frames, take.rate)
-    report = _blend_report(blend, int(take.n_frames), time.perf_counter() - t)
+    report = {**_blend_report(blend, int(take.n_frames), time.perf_counter() - t),
+              "scan_bases": _bases_quality(folder["report"], frames)}
     A = np.asarray(folder["output_from_mocap"], dtype=np.float64)
     markers_out = folder["template"].to_source_unit(conditioned.positions @ A[:3, :3].T + A[:3, 3]).astype(np.float32)
     # the face back into the capture's frame (where cameras are calibrated), as animate writes it: the bases
@@ -107,6 +108,25 @@ def _weights_csv(weights: np.ndarray, frames: Sequence[int], rate: float) -> str
     header = "frame,time_s," + ",".join(f"basis_{i}_frame_{f}" for i, f in enumerate(frames))
     rows = [f"{t_},{t_ / rate:.6f}," + ",".join(f"{w:.6g}" for w in weights[t_]) for t_ in range(len(weights))]
     return header + "\n" + "\n".join(rows) + "\n"
+
+
+def _bases_quality(registration: dict[str, Any], frames: Sequence[int]) -> list[dict[str, Any]]:
+    """Each basis's figures from its registration (``bases.json``) that need no truth, for the result's report:
+    its scan, its frame, the distance to its scan, the markers' disagreement before section 7, how far the
+    template slid along and across itself, and the colour alignment's texture mismatch and slide."""
+    out = []
+    for i, (entry, frame) in enumerate(zip(registration.get("scans", []), frames)):
+        quality = entry.get("quality", {})
+        out.append({
+            "basis": i, "frame": int(frame), "scan": Path(str(entry.get("scan", f"scan {i}"))).name,
+            "registration_mm": entry.get("large_scale_mm"),
+            "marker_residual_mm": quality.get("marker_residual_mm"),
+            "tangential_motion_mm": quality.get("tangential_motion_mm"),
+            "normal_motion_mm": quality.get("normal_motion_mm"),
+            "colour_mismatch_by_round": entry.get("colour_mismatch_by_round"),
+            "colour_alignment_moved_mm": entry.get("colour_alignment_moved_mm"),
+        })
+    return out
 
 
 def _blend_report(blend: BlendWithPose, n_frames: int, weights_s: float) -> dict[str, Any]:

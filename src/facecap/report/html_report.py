@@ -948,12 +948,61 @@ def _wrinkles(run: _Run, plot: _Plotter) -> _Block | None:
         "skin: tenths of a millimetre to about 2 mm.", look=deepest is not None and deepest > 3.0)
 
 
+def _scan_bases(run: _Run, plot: _Plotter) -> _Block | None:
+    bases = [b for b in (run.take("scan_bases") or []) if isinstance(b, Mapping)]
+    if not bases:
+        return None
+
+    def mean(entry: Mapping[str, Any], key: str) -> float | None:
+        value = entry.get(key)
+        return _float(value.get("mean")) if isinstance(value, Mapping) else _float(value)
+
+    marker = np.array([mean(b, "marker_residual_mm") or np.nan for b in bases])
+    slide = np.array([_float(b.get("tangential_motion_mm")) or np.nan for b in bases])
+    mismatch = [[_float(m) for m in b.get("colour_mismatch_by_round") or []] for b in bases]
+    coloured = any(m for m in mismatch)
+    typical = float(np.nanmedian(marker)) if np.isfinite(marker).any() else np.nan
+    # a basis whose markers disagree with it far more than the others' do, or whose texture still looks unrelated
+    odd = [i for i, b in enumerate(bases) if (np.isfinite(marker[i]) and marker[i] > max(3.0 * typical, 0.5))
+           or (mismatch[i] and (mismatch[i][-1] or 0.0) > 0.2)]
+    rows = []
+    for i, b in enumerate(bases):
+        moved = b.get("colour_alignment_moved_mm")
+        row = [str(b.get("basis", i)), str(b.get("frame", "")), str(b.get("scan", "")),
+               _number(_float(b.get("registration_mm"))) if _float(b.get("registration_mm")) is not None else "–",
+               _number(marker[i]) if np.isfinite(marker[i]) else "–",
+               _number(slide[i]) if np.isfinite(slide[i]) else "–"]
+        if coloured:
+            row += [" -> ".join(_number(m) for m in mismatch[i] if m is not None) or "–",
+                    _number(mean(b, "colour_alignment_moved_mm")) if isinstance(moved, Mapping) else "–"]
+        rows.append(row + ["look at this" if i in odd else ""])
+    head = ["basis", "frame", "scan", "to its scan (mm)", "markers before the fit (mm)", "slid along the skin (mm)"]
+    if coloured:
+        head += ["texture mismatch by round", "moved by colour (mm)"]
+    table = _grid([*head, "note"], rows, [True, True, False, True, True, True, *([False, True] if coloured else []),
+                                          False], css="bases")
+    colour_note = (" Texture mismatch: how far the band-passed textures of the scan and the template differ where "
+                   "both are seen, at the start of each colour-alignment round (measured: about 0.08 when the "
+                   "textures line up, 0.10 for a slide of 1.5 mm, 0.37 against an unrelated texture)."
+                   if coloured else "")
+    return _Block(
+        "Scan bases", f"{len(bases)} bases; markers disagree with their basis by {_quantity(typical, 'mm')} "
+                      f"(median of the bases' means) before the section-7 fit",
+        "Each registered scan, read without truth: its mean distance to its scan, how far its frame's markers were "
+        "from it before the fit pins it to them (a pose or correspondence error shows here first), and how far "
+        "the template slid along itself to reach the scan (expressions slide skin a few millimetres at most)."
+        + colour_note,
+        "Good: a few hundredths of a millimetre to the scan, marker disagreements of a few tenths, all bases "
+        "alike. A basis far above the others is marked: check its scan (the planned expression? the frame?).",
+        look=bool(odd), extra=f"<details{' open' if odd else ''}><summary>Per basis</summary>{table}</details>")
+
+
 _ANIMATE_FIGURES = (_animate_residual, _leave_one_out, _rest_pose, _head_motion, _stabilisation, _conditioning,
                     _temporal_sigma, _offset_correction, _filled)
 
 _FIGURES: dict[str, tuple[Callable[[_Run, _Plotter], _Block | None], ...]] = {
     "bickel2007-large-scale": _ANIMATE_FIGURES,
-    "huang2011-blendshapes": (_blend_residual, _head_pose_correction, _head_motion, _rest_pose),
+    "huang2011-blendshapes": (_blend_residual, _scan_bases, _head_pose_correction, _head_motion, _rest_pose),
     "sifakis2005-muscle-activations": (_muscle_residual, _muscle_flags, _muscle_effort, _rest_pose, _head_motion,
                                        _stabilisation, _conditioning, _temporal_sigma, _filled),
     "sifakis2005-muscle-edit": (_edit_convergence, _skin_change, _sphere),
