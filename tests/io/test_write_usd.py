@@ -244,3 +244,32 @@ def test_bad_input_raises(tmp_path):
         w.close()
     w.abort()
     assert not path.exists()
+
+
+@pytest.mark.parametrize("clip_frames", [None, 2])
+def test_a_textured_scan_carries_its_texture_as_a_preview_surface(tmp_path, clip_frames):
+    from pxr import Sdf as _Sdf, UsdShade
+
+    from facecap.io.image_file import read_image
+
+    base = _quad_tri_mesh(unit="mm")
+    texture = np.random.default_rng(3).integers(0, 256, size=(8, 16, 3), dtype=np.uint8)
+    mesh = Mesh(base.vertices, base.faces, polygon_sizes=[4, 3], polygon_indices=[0, 1, 2, 3, 1, 4, 2],
+                uvs=base.uvs, uv_indices=base.uv_indices, texture=texture)
+    path = tmp_path / "performance.usdc"
+    _write(path, mesh, _take(mesh, 5), 30.0, clip_frames=clip_frames)
+    stage = Usd.Stage.Open(str(path))
+    _assert_valid(stage)  # USD's own validators (shader ids, material binding, asset paths)
+    face = stage.GetPrimAtPath("/Head/Face")
+    material, _ = UsdShade.MaterialBindingAPI(face).ComputeBoundMaterial()
+    assert material and material.GetPath() == _Sdf.Path("/Head/Looks/Skin")
+    surface = material.ComputeSurfaceSource()[0]
+    assert surface.GetIdAttr().Get() == "UsdPreviewSurface"
+    colour = surface.GetInput("diffuseColor").GetConnectedSources()[0][0].source
+    shader = UsdShade.Shader(colour.GetPrim())
+    assert shader.GetIdAttr().Get() == "UsdUVTexture"
+    reader = UsdShade.Shader(shader.GetInput("st").GetConnectedSources()[0][0].source.GetPrim())
+    assert reader.GetInput("varname").Get() == "st"  # the mesh's own UVs, checked above
+    image = shader.GetInput("file").Get().resolvedPath  # resolved by USD's asset resolver, from the layer's folder
+    assert image == str(tmp_path / "performance_color.png")
+    np.testing.assert_array_equal(read_image(image), texture)

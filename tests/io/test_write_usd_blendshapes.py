@@ -88,6 +88,27 @@ def test_keeping_every_entry_is_exact(tmp_path):
     assert np.abs(P - rig.frames(5, 6)[0]).max() < 1e-5
 
 
+
+def test_a_textured_scans_rig_binds_its_texture_beside_it(tmp_path):
+    from pxr import UsdShade
+
+    from facecap.io.image_file import read_image
+
+    mesh, rig = _decaying_rig(seed=2)
+    texture = np.random.default_rng(4).integers(0, 65536, size=(6, 10, 3), dtype=np.uint16)  # 16 bits, as scanners
+    uvs = (mesh.vertices[:, :2] - mesh.vertices[:, :2].min(0)) / np.ptp(mesh.vertices[:, :2], axis=0)
+    textured = Mesh(mesh.vertices, mesh.faces, uvs=uvs, uv_indices=mesh.faces.ravel(), texture=texture)
+    write_usd_blendshapes(tmp_path / "rig.usdc", textured, rig, rate=30.0)
+    _assert_valid(tmp_path / "rig.usdc")
+    stage = Usd.Stage.Open(str(tmp_path / "rig.usdc"))
+    (target,) = [p for p in stage.Traverse() if p.IsA(UsdGeom.Mesh)]
+    material, _ = UsdShade.MaterialBindingAPI(target).ComputeBoundMaterial()
+    colour = material.ComputeSurfaceSource()[0].GetInput("diffuseColor").GetConnectedSources()[0][0].source
+    image = UsdShade.Shader(colour.GetPrim()).GetInput("file").Get().resolvedPath
+    assert image == str(tmp_path / "rig_color.png")
+    np.testing.assert_array_equal(read_image(image), texture)
+
+
 def test_animate_and_export_usd_match_vertices(capture_case, tmp_path):
     scan = read_mesh(capture_case.scan_path)
     with warnings.catch_warnings():

@@ -89,6 +89,8 @@ def export_files(result: Result, fmt: str, *, export_frame: str = "stabilized", 
         names = ["performance_rig.usdc"] if result.rig is not None else []
         if not skip_streamed and (result.rig is None or result.has_vertices):  # as a run streams it
             names.append("performance.usdc")
+        if result.mesh.texture is not None and result.mesh.uvs is not None:  # each file's colour texture beside it
+            names += [name.replace(".usdc", "_color.png") for name in names]
         return names
     if fmt in ("obj", "ply"):
         return [] if skip_streamed else [f"{fmt}/"]

@@ -7,6 +7,8 @@ Layout of the stage (both modes)::
     /Head/Face       Mesh: the scan's polygons, ``primvars:st`` (faceVarying,
                      indexed) when it has UVs, time-sampled ``points`` and
                      ``extent`` in the scan's source unit
+    /Head/Looks/Skin Material (UsdPreviewSurface) when the scan has a colour
+                     texture: its image ``<stem>_color.png`` beside the file
 
 Why two modes: an Sdf layer keeps every time sample it holds in memory until it
 is saved and released, and a ``.usdc`` file is written in one go when its layer
@@ -49,6 +51,7 @@ from ..errors import InputError
 from ..structures import Mesh
 from ..units import mm_per_unit
 from .atomic_write import atomic_path
+from .usd_material import bind_colour_texture, write_texture_beside
 
 __all__ = ["UsdPerformanceWriter"]
 
@@ -176,6 +179,7 @@ class UsdPerformanceWriter:
 
         self.frames_written = 0
         self._head_pose: bool | None = None  # decided by the first block
+        self._image_name: str | None = None  # the colour texture's file, written on close
         self._closed = False
         self._layer: Any = None  # single-file layer
         self._clips: dict[int, Any] = {}  # open clip layers by index
@@ -381,6 +385,8 @@ class UsdPerformanceWriter:
             st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(uvs, dtype=np.float32)))
             if uv_idx is not None:
                 st.SetIndices(Vt.IntArray.FromNumpy(np.ascontiguousarray(uv_idx, dtype=np.int32)))
+        if self._image_name is not None:
+            bind_colour_texture(stage, _MESH, self._image_name)
         if self._head_pose:
             root.AddTransformOp()
         if self.use_clips:
@@ -409,6 +415,8 @@ class UsdPerformanceWriter:
         if self.frames_written != self.n_frames:
             raise InputError(f"close: only {self.frames_written} of {self.n_frames} frames were written")
         _, Sdf, _, _, _ = _pxr()
+        image = write_texture_beside(self.path, self.mesh)  # before the file that names it
+        self._image_name = None if image is None else image.name
         if not self.use_clips:
             self._author_top(self._layer)
             with atomic_path(self.path) as tmp:

@@ -51,6 +51,7 @@ from ..structures import Mesh
 from ..units import mm_per_unit
 from .atomic_write import atomic_path
 from .result_rig import ResultRig
+from .usd_material import bind_colour_texture, write_texture_beside
 from .weight_ranges import to_unit_range
 
 __all__ = ["write_usd_blendshapes", "DEFAULT_BLENDSHAPE_TOLERANCE_MM", "USD_EXACT_MAX_BYTES", "DEFAULT_USD_COMPONENTS"]
@@ -87,7 +88,9 @@ def write_usd_blendshapes(
     path : str or path-like
         A ``.usdc`` (or ``.usda``) file; written under a temporary name and renamed.
     mesh : Mesh
-        The scan: polygons and UVs (its vertices are not used: the rig's rest is).
+        The scan: polygons and UVs (its vertices are not used: the rig's rest is); its colour
+        texture, if any, is written beside the file (``<stem>_color.png``) and bound as a
+        UsdPreviewSurface material.
     rig : ResultRig
         In the result's unit (``rig.units``).
     rate : float
@@ -199,6 +202,9 @@ def write_usd_blendshapes(
         st.Set(Vt.Vec2fArray.FromNumpy(np.ascontiguousarray(mesh.uvs, np.float32)))
         if face_varying:
             st.SetIndices(Vt.IntArray.FromNumpy(np.ascontiguousarray(mesh.uv_indices, np.int32)))
+    image = write_texture_beside(path, mesh)  # the colour texture, beside the file that names it
+    if image is not None:
+        bind_colour_texture(stage, _FACE, image.name)
     binding = UsdSkel.BindingAPI.Apply(face.GetPrim())
     binding.CreateSkeletonRel().SetTargets([skeleton.GetPath()])
     binding.CreateBlendShapesAttr(Vt.TokenArray(tokens))
