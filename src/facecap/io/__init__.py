@@ -56,7 +56,8 @@ In the order a user meets them:
   :func:`write_usd_blendshapes` (``write_usd_blendshapes.py``): the rig (or the
   principal components its caller computed) as UsdSkel blend shapes, its
   weights in [0, 1] (:func:`to_unit_range`, ``weight_ranges.py``), as the
-  glTF review file's are.
+  glTF review file's are; both USD files bind a textured scan's colour texture, written beside
+  them (:func:`bind_colour_texture`, :func:`write_texture_beside`, ``usd_material.py``).
 - :func:`write_scan_plan` / :func:`read_scan_plan` (``scan_plan.py``) and
   :func:`write_registered_scans` / :func:`read_registered_scans`
   (``registered_scans.py``): the files of the scan workflow (``plan.json``, the
@@ -114,6 +115,7 @@ from .write_gltf import (MAX_MORPH_TARGETS, MORPH_GPU_BUDGET_BYTES, MORPH_GPU_BY
                          write_gltf)
 from .result_rig import RIG_FORMAT, RIG_PRECISIONS, ResultRig, check_frame_range, read_rig, write_rig
 from .read_result import MESH_FILE, Result, read_result
+from .usd_material import bind_colour_texture, texture_file_beside, write_texture_beside
 from .write_usd_blendshapes import (DEFAULT_BLENDSHAPE_TOLERANCE_MM, DEFAULT_USD_COMPONENTS, USD_EXACT_MAX_BYTES,
                                     write_usd_blendshapes)
 from .weight_ranges import UnitRangeWeights, to_unit_range
@@ -185,6 +187,9 @@ __all__ = [
     "Result",
     "MESH_FILE",
     "write_usd_blendshapes",
+    "bind_colour_texture",
+    "texture_file_beside",
+    "write_texture_beside",
     "DEFAULT_BLENDSHAPE_TOLERANCE_MM",
     "DEFAULT_USD_COMPONENTS",
     "USD_EXACT_MAX_BYTES",
