@@ -6,7 +6,8 @@ from scipy.sparse.csgraph import connected_components, dijkstra
 
 from facecap.errors import InputError
 from facecap.registration.register_scans import DEFAULT_REST_WEIGHT
-from facecap.registration.register_template_to_scan import MAX_NORMAL_ANGLE_DEG, register_template_to_scan
+from facecap.registration.register_template_to_scan import (MAX_NORMAL_ANGLE_DEG, register_template_to_scan,
+                                                              register_template_to_scans)
 from facecap.synth import generate_performance
 from facecap.synth.scan_expression import scan_expression
 
@@ -40,6 +41,27 @@ def test_flipped_scan_normals_are_detected_and_handled(setup):
     result = register_template_to_scan(case.scan, idx, w, flipped, truth[idx[:, 0]])
     assert result.flipped_scan_normals
     assert result.mean_distance_mm < 0.2
+
+
+
+def test_several_scans_at_once_give_what_each_gives_alone(setup):
+    # what the scans share (the template's system, the markers-only factor, the rounds' analysis) is built
+    # once; each result must be the one-scan registration's, whichever markers each scan sees
+    case, truth, scan, idx, w = setup
+    flipped = scan.with_vertices(scan.vertices)
+    object.__setattr__(flipped, "faces", np.ascontiguousarray(scan.faces[:, ::-1]))
+    targets = truth[idx[:, 0]]
+    fewer = targets.copy()
+    fewer[:5] = np.nan  # another set of markers seen: its own marker system
+    scans, markers = [scan, flipped, scan], [targets, targets, fewer]
+    together = register_template_to_scans(case.scan, idx, w, scans, markers)
+    for one, s, m in zip(together, scans, markers):
+        alone = register_template_to_scan(case.scan, idx, w, s, m)
+        np.testing.assert_allclose(one.vertices, alone.vertices, atol=1e-7)
+        np.testing.assert_array_equal(one.matched, alone.matched)
+        assert one.flipped_scan_normals == alone.flipped_scan_normals
+    assert [r.flipped_scan_normals for r in together] == [False, True, False]
+    assert np.isnan(together[2].marker_residual_mm[:5]).all() and np.isfinite(together[2].marker_residual_mm[5:]).all()
 
 
 def test_too_few_visible_markers(setup):

@@ -15,7 +15,8 @@ In the order a user meets them:
 - :func:`register_markers_to_scan` (``register_markers_to_scan.py``): one
   frame's markers onto a scan, as a :class:`MarkerRegistration`.
 - :func:`register_template_to_scan` (``register_template_to_scan.py``): the
-  large-scale template registration of section 6.1, as a :class:`TemplateRegistration`.
+  large-scale template registration of section 6.1, as a :class:`TemplateRegistration`;
+  :func:`register_template_to_scans` for several scans of one template, what they share built once.
 - :func:`align_albedo` (``align_albedo.py``): a registered template slid along
   its scan until the skin's colours match the template's (tangential
   correspondence from texture), as an :class:`AlbedoAlignment`.
@@ -64,7 +65,8 @@ from .register_scans import (
     default_workers,
     register_scans,
 )
-from .register_template_to_scan import DEFAULT_CLOSEST_POINT_WEIGHTS, TemplateRegistration, register_template_to_scan
+from .register_template_to_scan import (DEFAULT_CLOSEST_POINT_WEIGHTS, TemplateRegistration, register_template_to_scan,
+                                        register_template_to_scans)
 from .rigid_icp import (ClosestPointSurface, IcpResult, check_surface_units, rigid_icp, rigid_icp_to_surface,
                         trimmed_inliers)
 from .find_marker_map import (
@@ -102,6 +104,7 @@ __all__ = [
     "MIN_FACING_OUTWARD",
     "scan_winding",
     "register_template_to_scan",
+    "register_template_to_scans",
     "TemplateRegistration",
     "DEFAULT_CLOSEST_POINT_WEIGHTS",
     "refine_registration",

@@ -22,7 +22,7 @@ from ..markers.rigid_fit import rigid_fit
 from ..mesh.surface_colors import has_colors
 from ..structures import Mesh
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
-from .register_template_to_scan import register_template_to_scan
+from .register_template_to_scan import register_template_to_scans
 from .rigid_icp import rigid_icp
 
 __all__ = ["RegisteredScans", "register_scans", "default_workers", "DEFAULT_REST_WEIGHT",
@@ -332,9 +332,13 @@ def _register_scans(scans: Sequence[Mesh], X: np.ndarray, each_scan: Any, templa
         usable = on_template & ~reg.unmatched
         off_scan = X[i] - marker_offset_mm * marker_normals_rest
         targets.append(np.where(usable[:, None], skins[i], off_scan)[on_template])
-    results = each_scan(partial(register_template_to_scan, tmpl_mocap, marker_vertices[on_template],
-                                marker_weights[on_template], rest_weight=rest_weight),
-                        list(zip(scans_mocap, targets)), desc="template -> scans")
+    # scans in runs, each run building the template's system once (register_template_to_scans); two runs a
+    # worker keep every worker busy to the end
+    size = -(-K // (2 * each_scan.workers))
+    runs = [(scans_mocap[i:i + size], targets[i:i + size]) for i in range(0, K, size)]
+    results = [r for run in each_scan(partial(register_template_to_scans, tmpl_mocap, marker_vertices[on_template],
+                                              marker_weights[on_template], rest_weight=rest_weight),
+                                      runs, desc="template -> scans") for r in run]
     for i, result in enumerate(results):
         registered[i] = result.vertices
         matched[i] = result.matched
