@@ -19,6 +19,7 @@ import numpy as np
 
 from ..blendshapes.reconstruct_performance import BlendWithPose, blend_weights_with_head_pose
 from ..errors import FacecapWarning, InputError
+from ..io.atomic_write import recorded_path, resolve_recorded_path
 from ..io.read_markers import read_markers
 from ..io.registered_scans import CONDITIONED_TAKE_FILE, read_registered_scans
 from ..io.write_performance import check_result_destination
@@ -72,7 +73,7 @@ def blend_take(
     frames = folder["plan"]["frames"]
     weights_csv = _weights_csv(weights, frames, take.rate)
     report = {**_blend_report(blend, int(take.n_frames), time.perf_counter() - t),
-              "scan_bases": _bases_quality(folder["report"], frames)}
+              "scan_bases": _bases_quality(folder["report"], frames, bases_dir, out_dir)}
     A = np.asarray(folder["output_from_mocap"], dtype=np.float64)
     markers_out = folder["template"].to_source_unit(conditioned.positions @ A[:3, :3].T + A[:3, 3]).astype(np.float32)
     # the face back into the capture's frame (where cameras are calibrated), as animate writes it: the bases
@@ -110,15 +111,20 @@ def _weights_csv(weights: np.ndarray, frames: Sequence[int], rate: float) -> str
     return header + "\n" + "\n".join(rows) + "\n"
 
 
-def _bases_quality(registration: dict[str, Any], frames: Sequence[int]) -> list[dict[str, Any]]:
+def _bases_quality(registration: dict[str, Any], frames: Sequence[int], bases_dir: str | Path,
+                   out_dir: str | Path) -> list[dict[str, Any]]:
     """Each basis's figures from its registration (``bases.json``) that need no truth, for the result's report:
-    its scan, its frame, the distance to its scan, the markers' disagreement before section 7, how far the
-    template slid along and across itself, and the colour alignment's texture mismatch and slide."""
+    its scan (recorded for ``out_dir``), its frame, the distance to its scan, the markers' disagreement before
+    section 7, how far the template slid along and across itself, and the colour alignment's texture mismatch
+    and slide."""
     out = []
     for i, (entry, frame) in enumerate(zip(registration.get("scans", []), frames)):
         quality = entry.get("quality", {})
+        scan = entry.get("scan")
         out.append({
-            "basis": i, "frame": int(frame), "scan": Path(str(entry.get("scan", f"scan {i}"))).name,
+            "basis": i, "frame": int(frame),
+            "scan": None if scan is None else recorded_path(resolve_recorded_path(scan, folder=bases_dir),
+                                                            folder=out_dir),
             "registration_mm": entry.get("large_scale_mm"),
             "marker_residual_mm": quality.get("marker_residual_mm"),
             "tangential_motion_mm": quality.get("tangential_motion_mm"),

@@ -968,7 +968,7 @@ def _scan_bases(run: _Run, plot: _Plotter) -> _Block | None:
     rows = []
     for i, b in enumerate(bases):
         moved = b.get("colour_alignment_moved_mm")
-        row = [str(b.get("basis", i)), str(b.get("frame", "")), str(b.get("scan", "")),
+        row = [str(b.get("basis", i)), str(b.get("frame", "")), Path(str(b.get("scan") or "")).name,
                _number(_float(b.get("registration_mm"))) if _float(b.get("registration_mm")) is not None else "–",
                _number(marker[i]) if np.isfinite(marker[i]) else "–",
                _number(slide[i]) if np.isfinite(slide[i]) else "–"]
