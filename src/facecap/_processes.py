@@ -44,11 +44,13 @@ def _call_recording_warnings(function: Callable[..., Any], args: tuple[Any, ...]
 class ProcessMap:
     """Calls a function on each item, on worker processes, results in order (see :func:`process_map`)."""
 
+    workers: int
+    """How many processes do the work (1: this one)."""
+
     def __init__(self, executor: ProcessPoolExecutor | None, workers: int, progress: bool) -> None:
         self._executor = executor
         self._progress = progress
         self.workers = workers
-        """How many processes do the work (1: this one)."""
 
     def __call__(self, function: Callable[..., Any], items: Sequence[tuple[Any, ...]], *, desc: str) -> list[Any]:
         """``[function(*item) for item in items]``; the workers' warnings are raised again here, in order.

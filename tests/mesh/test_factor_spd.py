@@ -47,6 +47,28 @@ def test_refactor_solves_the_new_matrix_whether_or_not_its_pattern_is_the_old_on
     factor.free()
 
 
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="needs MKL PARDISO (x86)")
+def test_refactor_falls_back_to_a_whole_factorisation_when_pypardiso_moves_its_internals():
+    A = _spd(300, 5)
+    b = np.ones((300, 2))
+    factor = SpdFactor(A, backend="pardiso")
+
+    solver = factor._impl[0]
+    call = solver._call_pardiso
+
+    def moved(*args):  # the numeric phase alone goes through pypardiso's internals; say they changed
+        if solver.phase == 22:
+            raise TypeError("_call_pardiso() takes 2 positional arguments")
+        return call(*args)
+
+    solver._call_pardiso = moved
+    B = A + sp.eye(300)
+    factor.refactor(B)
+    np.testing.assert_allclose(factor.solve(b), spsolve(B.tocsc(), b), rtol=1e-8, atol=1e-10)
+    factor.free()
+
+
 def test_pardiso_is_the_default_where_available():
     assert "pardiso" in available_backends()
     assert SpdFactor(_spd(50, 1)).backend == "pardiso"

@@ -468,13 +468,13 @@ def test_a_blend_shows_each_scan_basis_and_marks_the_one_far_from_its_markers(tm
         "normal_motion_mm": 0.3, "colour_mismatch_by_round": mismatch, "colour_alignment_moved_mm": {"mean": 0.3}}
     _write(blend, "blend_report.json",
         {"n_frames": 3, "n_bases": 3, "marker_residual_mm": {"per_frame": [0.1, 0.3, 0.2], "mean": 0.2, "max": 0.3},
-         "scan_bases": [basis(0, 28, 0.21, [0.11, 0.08]), basis(1, 47, 0.25, [0.12, 0.085]),
-                        basis(2, 9, 1.9, [0.36, 0.35])]})
+         "scan_bases": [{**basis(0, 28, 0.21, [0.11, 0.08]), "tangential_motion_mm": 0.0},
+                        basis(1, 47, 0.25, [0.12, 0.085]), basis(2, 9, 1.9, [0.36, 0.35])]})
     text = _text(write_html_report(blend / "report.html", blend))
     assert "Scan bases" in text and "3 bases; markers disagree with their basis by 0.25 mm" in text
     rows = [line for line in text.splitlines() if line.startswith(("0\t", "1\t", "2\t"))]
     assert len(rows) == 3, rows
-    assert rows[0].split("\t")[:3] == ["0", "28", "scan_0.obj"] and "0.11 -> 0.08" in rows[0]
+    assert rows[0].split("\t")[:6] == ["0", "28", "scan_0.obj", "0.04", "0.21", "0"] and "0.11 -> 0.08" in rows[0]
     assert not rows[0].endswith("look at this") and not rows[1].endswith("look at this")
     assert rows[2].endswith("look at this")  # 1.9 mm from its markers where the others are 0.2, texture unrelated
 

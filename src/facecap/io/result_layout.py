@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Iterable
 
 from ..errors import InputError
+from .usd_material import texture_file_beside
 
 if TYPE_CHECKING:
     from .read_result import Result
@@ -90,7 +91,7 @@ def export_files(result: Result, fmt: str, *, export_frame: str = "stabilized", 
         if not skip_streamed and (result.rig is None or result.has_vertices):  # as a run streams it
             names.append("performance.usdc")
         if result.mesh.texture is not None and result.mesh.uvs is not None:  # each file's colour texture beside it
-            names += [name.replace(".usdc", "_color.png") for name in names]
+            names += [texture_file_beside(name).name for name in names]
         return names
     if fmt in ("obj", "ply"):
         return [] if skip_streamed else [f"{fmt}/"]

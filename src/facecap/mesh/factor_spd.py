@@ -197,13 +197,18 @@ class SpdFactor:
             return
         solver, upper = self._impl[0], within
         try:
+            # pypardiso has no public call for PARDISO's numeric phase alone: its own internals, and
+            # its record of the factored matrix (solve() recognises the factor by the matrix's values)
             solver.set_phase(22)
             solver._call_pardiso(upper, np.zeros((self.n, 1), order="F"))
-        except Exception as exc:
+            solver.factorized_A = (solver._hash_csr_matrix(upper) if upper.nnz > solver.size_limit_storage
+                                   else upper.copy())
+        except Exception:
+            # a refused matrix, or a pypardiso whose internals moved: the whole factorisation, which
+            # raises SolverError itself if the matrix is at fault
             self.free()
-            raise SolverError(f"sparse factorisation failed: {exc}") from None
-        # pypardiso recognises the factored matrix by its values: solve() must see this one
-        solver.factorized_A = solver._hash_csr_matrix(upper) if upper.nnz > solver.size_limit_storage else upper.copy()
+            self._factor_pardiso(A)
+            return
         self._impl = (solver, upper)
 
     def _factor_pardiso(self, A: sp.csr_matrix) -> None:

@@ -253,58 +253,56 @@ def align_albedo(
     mismatch: list[float] = []
     src = source_valid = None
     factor = SpdFactor.unfactored(V.shape[0], backend=backend)  # every round's update: one analysis
-    for _ in range(iterations):
-        pixels = cmap.project(V)
-        raster = cmap.rasterise(Fw, pixels=pixels)
-        rows, cols = np.nonzero(raster.covered)
-        tri, bary = raster.face[rows, cols], raster.barycentric[rows, cols]
-        if src is None:
-            # The scan's colour under each pixel. The registration put the mesh on the scan and every
-            # round slides it along the scan, so the scan's surface under a pixel, and its colour, stay
-            # the same from round to round: looked up and band-passed once.
-            points = np.einsum("kc,kcj->kj", bary, V[Fw[tri]])
-            colour, near = _luma_at(points, tree, scan, reach)
-            source = np.zeros(raster.face.shape)
-            source_valid = np.zeros(raster.face.shape, dtype=bool)
-            source[rows, cols] = np.where(near, colour, 0.0)
-            source_valid[rows, cols] = near
-        # the same pixels on the template: its rest surface under them, coloured by its texture
-        if own_texture:
-            reference = _luminance(surface_colors(texture, tri, bary).astype(np.float64))
-            on_texture = np.ones(tri.size, dtype=bool)
-        else:
-            rest_points = np.einsum("kc,kcj->kj", bary, rest_w[Fw[tri]])
-            reference, on_texture = _luma_at(rest_points, texture_tree, texture, reach)
-        target = np.zeros(raster.face.shape)
-        valid = np.zeros(raster.face.shape, dtype=bool)
-        valid[rows, cols] = on_texture
-        valid &= source_valid
-        target[rows, cols] = reference
-        target[~valid] = 0.0
-        if src is None:
-            src = _band(np.where(valid, source, 0.0), valid, fine_px, coarse_px)
-        tgt = _band(target, valid, fine_px, coarse_px)
-        mismatch.append(float(np.abs(src - tgt)[valid].mean()) if valid.any() else float("nan"))
-        flow = optical_flow(tgt, src, method="dis")
-        delta = cmap.sample(flow, pixels, fill=0.0)
-        strength = np.sqrt(cv2.GaussianBlur(src * src, (0, 0), max(2.0 * fine_px, 1.0)))
-        confidence = np.clip(cmap.sample(strength, pixels, fill=0.0) / _STRONG_TEXTURE, floor, 1.0)
-        confidence = np.where(cmap.sample(valid.astype(np.float64), pixels, fill=0.0) > 0.99, confidence, floor)
-        moved, ok = raster.surface_points(pixels + delta, V)
-        dv = np.where(ok[:, None], moved - V, 0.0)
-        limit = 3.0 * np.linalg.norm(delta, axis=1) / cmap.px_per_mm + 2.0 / cmap.px_per_mm
-        movable = visible_in_raster(raster) & ok & on_scan & (np.linalg.norm(dv, axis=1) <= limit)
-        dv[~movable] = 0.0
-        # what the scan does not show stays where the large-scale registration put it (from the
-        # markers), rather than being dragged along by the Laplacian of its moving neighbours
-        confidence = np.where(movable, confidence, 0.0)
-        try:
+    try:
+        for _ in range(iterations):
+            pixels = cmap.project(V)
+            raster = cmap.rasterise(Fw, pixels=pixels)
+            rows, cols = np.nonzero(raster.covered)
+            tri, bary = raster.face[rows, cols], raster.barycentric[rows, cols]
+            if src is None:
+                # The scan's colour under each pixel. The registration put the mesh on the scan and every
+                # round slides it along the scan, so the scan's surface under a pixel, and its colour, stay
+                # the same from round to round: looked up and band-passed once.
+                points = np.einsum("kc,kcj->kj", bary, V[Fw[tri]])
+                colour, near = _luma_at(points, tree, scan, reach)
+                source = np.zeros(raster.face.shape)
+                source_valid = np.zeros(raster.face.shape, dtype=bool)
+                source[rows, cols] = np.where(near, colour, 0.0)
+                source_valid[rows, cols] = near
+            # the same pixels on the template: its rest surface under them, coloured by its texture
+            if own_texture:
+                reference = _luminance(surface_colors(texture, tri, bary).astype(np.float64))
+                on_texture = np.ones(tri.size, dtype=bool)
+            else:
+                rest_points = np.einsum("kc,kcj->kj", bary, rest_w[Fw[tri]])
+                reference, on_texture = _luma_at(rest_points, texture_tree, texture, reach)
+            target = np.zeros(raster.face.shape)
+            valid = np.zeros(raster.face.shape, dtype=bool)
+            valid[rows, cols] = on_texture
+            valid &= source_valid
+            target[rows, cols] = reference
+            target[~valid] = 0.0
+            if src is None:
+                src = _band(np.where(valid, source, 0.0), valid, fine_px, coarse_px)
+            tgt = _band(target, valid, fine_px, coarse_px)
+            mismatch.append(float(np.abs(src - tgt)[valid].mean()) if valid.any() else float("nan"))
+            flow = optical_flow(tgt, src, method="dis")
+            delta = cmap.sample(flow, pixels, fill=0.0)
+            strength = np.sqrt(cv2.GaussianBlur(src * src, (0, 0), max(2.0 * fine_px, 1.0)))
+            confidence = np.clip(cmap.sample(strength, pixels, fill=0.0) / _STRONG_TEXTURE, floor, 1.0)
+            confidence = np.where(cmap.sample(valid.astype(np.float64), pixels, fill=0.0) > 0.99, confidence, floor)
+            moved, ok = raster.surface_points(pixels + delta, V)
+            dv = np.where(ok[:, None], moved - V, 0.0)
+            limit = 3.0 * np.linalg.norm(delta, axis=1) / cmap.px_per_mm + 2.0 / cmap.px_per_mm
+            movable = visible_in_raster(raster) & ok & on_scan & (np.linalg.norm(dv, axis=1) <= limit)
+            dv[~movable] = 0.0
+            # what the scan does not show stays where the large-scale registration put it (from the
+            # markers), rather than being dragged along by the Laplacian of its moving neighbours
+            confidence = np.where(movable, confidence, 0.0)
             V = regularised_update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), scan, on_scan,
                                    alpha=alpha, scan_tree=tree, factor=factor)
-        except BaseException:
-            factor.free()
-            raise
-    factor.free()
+    finally:
+        factor.free()
     out = V[back]
     return AlbedoAlignment(vertices=out, moved_mm=np.linalg.norm(out - V0, axis=1), confidence=confidence[back],
                            mismatch_by_round=mismatch)

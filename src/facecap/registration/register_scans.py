@@ -351,9 +351,7 @@ def _register_scans(scans: Sequence[Mesh], X: np.ndarray, each_scan: Any, templa
         texture = _template_texture(template_texture, tmpl_mocap,
                                     None if template_markers is None else np.asarray(template_markers, dtype=np.float64),
                                     X, marker_offset_mm, template_deformation_weight)
-        if texture is None or not all(has_colors(s) for s in scans_mocap):
-            raise InputError("align_colors: the scans and the template (or template_texture) need colour "
-                             "(a texture or vertex colours)")
+        assert texture is not None  # register_scans refused a colour source without colour before any work
 
         t = time.perf_counter()
         up = output_from_mocap[:3, :3].T @ np.array([0.0, 1.0, 0.0])

@@ -953,12 +953,17 @@ def _scan_bases(run: _Run, plot: _Plotter) -> _Block | None:
     if not bases:
         return None
 
-    def mean(entry: Mapping[str, Any], key: str) -> float | None:
+    def mean(entry: Mapping[str, Any], key: str) -> float:
+        """The figure (or its ``mean``), NaN where missing."""
         value = entry.get(key)
-        return _float(value.get("mean")) if isinstance(value, Mapping) else _float(value)
+        number = _float(value.get("mean")) if isinstance(value, Mapping) else _float(value)
+        return np.nan if number is None else number
 
-    marker = np.array([mean(b, "marker_residual_mm") or np.nan for b in bases])
-    slide = np.array([_float(b.get("tangential_motion_mm")) or np.nan for b in bases])
+    def shown(x: float) -> str:
+        return _number(x) if np.isfinite(x) else "–"
+
+    marker = np.array([mean(b, "marker_residual_mm") for b in bases])
+    slide = np.array([mean(b, "tangential_motion_mm") for b in bases])
     mismatch = [[_float(m) for m in b.get("colour_mismatch_by_round") or []] for b in bases]
     coloured = any(m for m in mismatch)
     typical = float(np.nanmedian(marker)) if np.isfinite(marker).any() else np.nan
@@ -967,14 +972,11 @@ def _scan_bases(run: _Run, plot: _Plotter) -> _Block | None:
            or (mismatch[i] and (mismatch[i][-1] or 0.0) > 0.2)]
     rows = []
     for i, b in enumerate(bases):
-        moved = b.get("colour_alignment_moved_mm")
         row = [str(b.get("basis", i)), str(b.get("frame", "")), Path(str(b.get("scan") or "")).name,
-               _number(_float(b.get("registration_mm"))) if _float(b.get("registration_mm")) is not None else "–",
-               _number(marker[i]) if np.isfinite(marker[i]) else "–",
-               _number(slide[i]) if np.isfinite(slide[i]) else "–"]
+               shown(mean(b, "registration_mm")), shown(marker[i]), shown(slide[i])]
         if coloured:
             row += [" -> ".join(_number(m) for m in mismatch[i] if m is not None) or "–",
-                    _number(mean(b, "colour_alignment_moved_mm")) if isinstance(moved, Mapping) else "–"]
+                    shown(mean(b, "colour_alignment_moved_mm"))]
         rows.append(row + ["look at this" if i in odd else ""])
     head = ["basis", "frame", "scan", "to its scan (mm)", "markers before the fit (mm)", "slid along the skin (mm)"]
     if coloured:
@@ -986,8 +988,9 @@ def _scan_bases(run: _Run, plot: _Plotter) -> _Block | None:
                    "textures line up, 0.10 for a slide of 1.5 mm, 0.37 against an unrelated texture)."
                    if coloured else "")
     return _Block(
-        "Scan bases", f"{len(bases)} bases; markers disagree with their basis by {_quantity(typical, 'mm')} "
-                      f"(median of the bases' means) before the section-7 fit",
+        "Scan bases", f"{len(bases)} bases" + (f"; markers disagree with their basis by {_quantity(typical, 'mm')} "
+                                               "(median of the bases' means) before the section-7 fit"
+                                               if np.isfinite(typical) else ""),
         "Each registered scan, read without truth: its mean distance to its scan, how far its frame's markers were "
         "from it before the fit pins it to them (a pose or correspondence error shows here first), and how far "
         "the template slid along itself to reach the scan (expressions slide skin a few millimetres at most)."
