@@ -369,8 +369,8 @@ def animate_scan(
         }
         writer.path("report.json").write_text(json.dumps(report, indent=1))
         metadata["timings"] = timings
-        if usd_principal is not None:
-            writer.export_options["usd_principal"] = usd_principal.result()
+        if usd_principal is not None:  # the export waits for it; the metadata and the page's plots do not
+            writer.export_options["usd_principal"] = usd_principal
         final = finish_result(writer, metadata)
     return AnimationResult(out_dir=final, report=report)
 

@@ -40,6 +40,7 @@ import json
 import os
 import tempfile
 import warnings
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -79,7 +80,7 @@ def export_result(
     batch_frames: int = 64,
     skip_streamed: bool = False,
     progress: bool = False,
-    usd_principal: dict[str, Any] | None = None,
+    usd_principal: dict[str, Any] | Future | None = None,
 ) -> dict[str, Any]:
     """Write ``formats`` of a finished result, adding to the folder and removing nothing.
 
@@ -120,9 +121,10 @@ def export_result(
     skip_streamed : bool, default False
         Leave out what a run streams itself (time-sampled USD points, OBJ, PLY).
     progress : bool, default False
-    usd_principal : dict, optional
+    usd_principal : dict or Future of one, optional
         The USD rig's principal components computed already (:func:`usd_principal_components` of this
-        result's rig and ``usd_shapes``, whose warning the caller has given); default None: computed here.
+        result's rig and ``usd_shapes``, whose warning the caller has given), or being computed on another
+        thread (waited for when the USD rig is written); default None: computed here.
 
     Returns
     -------
@@ -201,7 +203,7 @@ def _sizes(*paths: Path) -> dict[str, int]:
 
 
 def _export_usd(result: Result, target: Path, *, batch_frames: int, progress: bool, usd_shapes: str | int,
-                skip_streamed: bool, usd_principal: dict[str, Any] | None = None, **_: Any) -> dict[str, Any]:
+                skip_streamed: bool, usd_principal: dict[str, Any] | Future | None = None, **_: Any) -> dict[str, Any]:
     """``performance_rig.usdc`` from the rig; ``performance.usdc`` (time-sampled points) as a run streams it."""
     files: dict[str, int] = {}
     stats: dict[str, Any] = {}
@@ -278,10 +280,12 @@ def usd_principal_components(rig: ResultRig, shape_count: int | None, *, progres
 
 
 def _export_usd_rig(result: Result, path: Path, *, progress: bool, usd_shapes: str | int,
-                    usd_principal: dict[str, Any] | None) -> dict[str, Any]:
+                    usd_principal: dict[str, Any] | Future | None) -> dict[str, Any]:
     from ..io.write_usd_blendshapes import write_usd_blendshapes
 
     rig = result.rig
+    if isinstance(usd_principal, Future):
+        usd_principal = usd_principal.result()
     if usd_principal is None:
         usd_principal = usd_principal_components(rig, usd_shape_count(rig, usd_shapes), progress=progress)
     return write_usd_blendshapes(path, result.mesh, rig, rate=result.rate, head_motion=result.head_motion,
