@@ -90,6 +90,29 @@ def test_raster_against_a_brute_force_point_in_triangle_reference():
     assert raster.barycentric[cov].min() >= -1e-9
 
 
+def test_overlapping_triangles_go_to_the_consistent_one_then_the_lowest_index():
+    V, _, _, _ = _cylinder_patch()
+    cmap = cylindrical_map(V, centre=(5.0, -3.0, 2.0), size_px=64)
+    # pixel positions given directly: three counter-clockwise squares' halves side by side (the majority's
+    # orientation), and over the first a folded (clockwise) copy with a lower index than the ones it covers
+    uv = np.array([[10.0, 10], [30, 10], [30, 30], [10, 30], [50, 10], [50, 30]])
+    F = np.array([[0, 2, 1],      # 0: folded (the other orientation than the five below)
+                  [0, 1, 2],      # 1: consistent, the same pixels as 0
+                  [0, 1, 2],      # 2: consistent, the same again: 1 is lower and wins
+                  [0, 2, 3],      # 3: consistent
+                  [1, 4, 5],      # 4: consistent
+                  [1, 5, 2]])     # 5: consistent
+    raster = cmap.rasterise(F, pixels=uv)
+    rows, cols = np.mgrid[0 : cmap.shape[0], 0 : cmap.shape[1]]
+    below_diagonal = (cols >= 10) & (cols <= 30) & (rows >= 10) & (rows <= cols)  # triangle (0, 1, 2)
+    assert set(np.unique(raster.face[below_diagonal])) == {1}
+    # a folded triangle that nothing else covers keeps its pixels
+    alone = cmap.rasterise(F[:1], pixels=uv)
+    assert set(np.unique(alone.face[below_diagonal])) == {0}
+    centres = np.einsum("pk,pkj->pj", raster.barycentric[raster.covered], uv[F[raster.face[raster.covered]]])
+    np.testing.assert_allclose(centres, np.stack([cols[raster.covered], rows[raster.covered]], 1), atol=1e-9)
+
+
 def test_pixel_to_surface_is_the_barycentric_inverse_of_surface_to_pixel():
     V, F, _, _ = _cylinder_patch()
     cmap = cylindrical_map(V, centre=(5.0, -3.0, 2.0), size_px=150)
