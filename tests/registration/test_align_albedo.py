@@ -67,6 +67,29 @@ def test_a_correct_registration_stays(slid_face):
     assert np.linalg.norm(result.vertices - V, axis=1).mean() < 0.1
 
 
+def test_a_factor_kept_between_scans_gives_the_same_alignment_and_one_analysis(slid_face):
+    # a run of scans shares the update's factor: the same answer as a factor of its own, and PARDISO's
+    # analysis (the solver object holding it) survives from one scan to the next
+    from facecap.mesh.factor_spd import SpdFactor
+    from facecap.mesh.weld_duplicate_vertices import weld_duplicate_vertices
+    from facecap.registration.align_albedo import SEAM_WELD_MM
+
+    s, V, F, scan, texture, slid, _ = slid_face
+    alone = align_albedo(slid, F, V, texture, scan)
+    factor = SpdFactor.unfactored(weld_duplicate_vertices(slid, F, tolerance=SEAM_WELD_MM).V.shape[0])
+    try:
+        first = align_albedo(slid, F, V, texture, scan, factor=factor)
+        solver = factor._impl[0]
+        second = align_albedo(V, F, V, texture, scan, factor=factor)
+        assert factor._impl[0] is solver or factor.backend != "pardiso"  # PARDISO's solver, its analysis kept
+    finally:
+        factor.free()
+    np.testing.assert_allclose(first.vertices, alone.vertices, atol=1e-6)
+    np.testing.assert_allclose(second.vertices, align_albedo(V, F, V, texture, scan).vertices, atol=1e-6)
+    with pytest.raises(InputError, match="factor"):
+        align_albedo(slid, F, V, texture, scan, factor="mine")
+
+
 def test_uncoloured_inputs_are_refused(slid_face):
     s, V, F, scan, texture, _, _ = slid_face
     bare = Mesh(scan.vertices, scan.faces)

@@ -48,7 +48,7 @@ with ``importlib.import_module``.
 
 from __future__ import annotations
 
-from .align_albedo import DEFAULT_ALBEDO_ITERATIONS, UNSEEN_ANCHOR, AlbedoAlignment, align_albedo
+from .align_albedo import DEFAULT_ALBEDO_ITERATIONS, SEAM_WELD_MM, UNSEEN_ANCHOR, AlbedoAlignment, align_albedo
 from .fit_bases_to_markers import fit_bases_to_markers
 from .smooth_marker_changes import SmoothedChanges, smooth_marker_changes
 from .marker_places_from_bases import MarkerPlaces, marker_places_from_bases
@@ -94,6 +94,7 @@ __all__ = [
     "AlbedoAlignment",
     "DEFAULT_ALBEDO_ITERATIONS",
     "UNSEEN_ANCHOR",
+    "SEAM_WELD_MM",
     "register_scans",
     "default_workers",
     "RegisteredScans",

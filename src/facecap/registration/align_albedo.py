@@ -21,7 +21,10 @@ from .optical_flow import optical_flow
 from .regularised_update import regularised_update
 from .visible_in_raster import visible_in_raster
 
-__all__ = ["AlbedoAlignment", "align_albedo", "DEFAULT_ALBEDO_ITERATIONS", "UNSEEN_ANCHOR"]
+__all__ = ["AlbedoAlignment", "align_albedo", "DEFAULT_ALBEDO_ITERATIONS", "UNSEEN_ANCHOR", "SEAM_WELD_MM"]
+
+SEAM_WELD_MM = 1e-6
+"""Template vertices closer than this (mm; UV-seam copies) are one vertex of the alignment's images and update."""
 
 DEFAULT_ALBEDO_ITERATIONS = 2
 """Flow-and-update rounds of :func:`align_albedo`."""
@@ -120,6 +123,7 @@ def align_albedo(
     snap_distance_mm: float = 0.5,
     confidence_floor: float = 0.02,
     backend: Backend = "auto",
+    factor: SpdFactor | None = None,
 ) -> AlbedoAlignment:
     """Slide a template registered onto a scan along the scan until the skin's colours match.
 
@@ -169,6 +173,14 @@ def align_albedo(
         Smallest data weight of a seen vertex; where the skin shows no
         texture the Laplacian carries its neighbours' motion instead.
     backend : {'auto', 'pardiso', 'scipy'}
+    factor : SpdFactor, optional
+        The update's factor to keep between calls on one template (one
+        :meth:`~facecap.mesh.factor_spd.SpdFactor.unfactored` of the welded
+        template's vertex count for a run of scans, freed by the caller):
+        every scan's update matrix has the template's pattern, so PARDISO's
+        analysis runs once for the run instead of once a scan (0.45 s of one
+        core a scan at 78k vertices). One of another size is not used.
+        Default None: one is made here and freed on return.
 
     Returns
     -------
@@ -209,7 +221,7 @@ def align_albedo(
     snap = as_positive(snap_distance_mm, name="snap_distance_mm", allow_zero=True)
     floor = as_positive(confidence_floor, name="confidence_floor")
 
-    welded = weld_duplicate_vertices(V0, np.asarray(F, dtype=np.int64), tolerance=1e-6)
+    welded = weld_duplicate_vertices(V0, np.asarray(F, dtype=np.int64), tolerance=SEAM_WELD_MM)
     Vw, Fw, back = welded.V, welded.F, welded.welded_index
     first = np.full(Vw.shape[0], -1, dtype=np.int64)
     first[back[::-1]] = np.arange(back.size)[::-1]  # one original vertex per welded vertex
@@ -252,7 +264,11 @@ def align_albedo(
     confidence = np.zeros(V.shape[0])
     mismatch: list[float] = []
     src = source_valid = None
-    factor = SpdFactor.unfactored(V.shape[0], backend=backend)  # every round's update: one analysis
+    if factor is not None and not isinstance(factor, SpdFactor):
+        raise InputError(f"factor: expected an SpdFactor or None, got {type(factor).__name__}")
+    own_factor = factor is None or factor.n != V.shape[0]
+    if own_factor:  # every round's update: one analysis
+        factor = SpdFactor.unfactored(V.shape[0], backend=backend)
     try:
         for _ in range(iterations):
             pixels = cmap.project(V)
@@ -302,7 +318,8 @@ def align_albedo(
             V = regularised_update(V, Fw, dv, np.where(movable, confidence, UNSEEN_ANCHOR), scan, on_scan,
                                    alpha=alpha, scan_tree=tree, factor=factor)
     finally:
-        factor.free()
+        if own_factor:
+            factor.free()
     out = V[back]
     return AlbedoAlignment(vertices=out, moved_mm=np.linalg.norm(out - V0, axis=1), confidence=confidence[back],
                            mismatch_by_round=mismatch)

@@ -19,7 +19,9 @@ from .._threads import available_cores
 from ..deform.marker_offsets import DEFAULT_MARKER_OFFSET_MM
 from ..errors import FacecapWarning, InputError
 from ..markers.rigid_fit import rigid_fit
+from ..mesh.factor_spd import SpdFactor
 from ..mesh.surface_colors import has_colors
+from ..mesh.weld_duplicate_vertices import weld_duplicate_vertices
 from ..structures import Mesh
 from .register_markers_to_scan import MarkerRegistration, register_markers_to_scan
 from .register_template_to_scan import register_template_to_scans
@@ -257,12 +259,18 @@ def default_workers(scans: Sequence[Mesh]) -> int:
     return available_cores() if sum(scan.n_vertices for scan in scans) >= _PROCESSES_FROM_VERTICES else 1
 
 
-def _align_colours(vertices: np.ndarray, scan: Mesh, *, faces: np.ndarray, rest: np.ndarray, texture: Mesh,
-                   axis: np.ndarray) -> Any:
-    """:func:`~facecap.registration.align_albedo.align_albedo` of one registered scan (a worker's task)."""
-    from .align_albedo import align_albedo
+def _align_colours(run: Sequence[tuple[np.ndarray, Mesh]], *, faces: np.ndarray, rest: np.ndarray, texture: Mesh,
+                   axis: np.ndarray) -> list[Any]:
+    """:func:`~facecap.registration.align_albedo.align_albedo` of a run of registered scans (a worker's task),
+    one factor of the update kept through the run (PARDISO's analysis once, not once a scan)."""
+    from .align_albedo import SEAM_WELD_MM, align_albedo
 
-    return align_albedo(vertices, faces, rest, texture, scan, axis=axis)
+    # the size align_albedo solves for: the template with its seams welded, as it welds them
+    factor = SpdFactor.unfactored(weld_duplicate_vertices(run[0][0], faces, tolerance=SEAM_WELD_MM).V.shape[0])
+    try:
+        return [align_albedo(vertices, faces, rest, texture, scan, axis=axis, factor=factor) for vertices, scan in run]
+    finally:
+        factor.free()
 
 
 def _register_scans(scans: Sequence[Mesh], X: np.ndarray, each_scan: Any, template: Mesh | None,
@@ -355,8 +363,11 @@ def _register_scans(scans: Sequence[Mesh], X: np.ndarray, each_scan: Any, templa
 
         t = time.perf_counter()
         up = output_from_mocap[:3, :3].T @ np.array([0.0, 1.0, 0.0])
-        alignments = each_scan(partial(_align_colours, faces=template.faces, rest=tmpl_mocap.vertices, texture=texture,
-                                       axis=up), list(zip(registered, scans_mocap)), desc="colour alignment")
+        pairs = list(zip(registered, scans_mocap))
+        alignments = [a for run in each_scan(partial(_align_colours, faces=template.faces, rest=tmpl_mocap.vertices,
+                                                     texture=texture, axis=up),
+                                             [(pairs[i:i + size],) for i in range(0, K, size)], desc="colour alignment")
+                      for a in run]
         for i, aligned in enumerate(alignments):
             registered[i] = aligned.vertices
             report["scans"][i]["colour_alignment_moved_mm"] = {
