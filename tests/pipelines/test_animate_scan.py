@@ -234,3 +234,20 @@ def test_the_rest_average_takes_out_head_motion_and_stops_where_the_face_moves()
     without = rest_average(X[None] + smile + noise, 0, 10.0)
     pulled_with, pulled_without = (with_noise - X)[:10, 0].mean(), (without - X)[:10, 0].mean()  # towards the smile
     assert pulled_with < 0.5 * pulled_without and pulled_without > 0.1
+
+
+def test_markers_missing_from_the_map_are_noted_once(capture_case, tmp_path):
+    # the capture case's head band is not in its map: one note says so (the early check before the set-up and
+    # the conditioning beside it both see it), and it does not call them ignored, since they find the head's pose
+    from facecap.errors import FacecapWarning
+
+    scan, take = read_mesh(capture_case.scan_path), read_markers(capture_case.markers_path)
+    corr = read_correspondence(capture_case.map_path, scan)
+    unmapped = sorted(set(take.labels) - set(corr.labels))
+    assert unmapped  # the case holds such markers
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = animate_scan(scan, take, corr, tmp_path / "out", progress=False, marker_offset_mm=0.0)
+    notes = [str(w.message) for w in caught if issubclass(w.category, FacecapWarning) and "marker map" in str(w.message)]
+    assert len(notes) == 1 and all(label in notes[0] for label in unmapped) and "ignored" not in notes[0]
+    assert sum("marker map" in w for w in result.report["warnings"]) == 1

@@ -9,7 +9,7 @@ from facecap.report import explain_warning
 # Messages as the code writes them (numbers, files and labels filled in), with a phrase that only the
 # advice written for that kind of warning holds: a message caught by another kind's pattern fails.
 KNOWN = [
-    ("4 take marker(s) are not in the correspondence map and are ignored: ['HB0', 'HB1', 'HB2', 'HB3']",
+    ("4 take marker(s) are not in the marker map, so they do not drive the face (they may still give the head's motion): ['HB0', 'HB1', 'HB2', 'HB3']",
      "head-band"),
     ("take.c3d: 2 duplicate marker label(s) renamed (Chin -> Chin~1)", "same label"),
     ("markers Leye_Up, Reye_Up land off the model /data/model (outside the meshed face: ears, scalp, neck, eyes, "

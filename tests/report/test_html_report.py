@@ -271,7 +271,7 @@ REPORT = {
                   "per_marker_mm": {"brow_L": 0.2, "brow_R": 0.25, "nose": 0.05, "chin": 0.9, "lip_up": 1.06,
                                     "lip_down": 0.7}},
     "notes": ["9 occluded marker samples filled"],
-    "warnings": ["4 take marker(s) are not in the correspondence map and are ignored: ['HB0', 'HB1', 'HB2', 'HB3']"],
+    "warnings": ["4 take marker(s) are not in the marker map, so they do not drive the face (they may still give the head's motion): ['HB0', 'HB1', 'HB2', 'HB3']"],
 }
 
 

@@ -292,7 +292,8 @@ def _match(corr: Correspondence, take_labels: tuple[str, ...] | list[str], *, st
     ignored = tuple(s for s in take if s not in in_map)
     if ignored:
         warnings.warn(
-            f"{len(ignored)} take marker(s) are not in the correspondence map and are ignored: {list(ignored)}",
+            f"{len(ignored)} take marker(s) are not in the marker map, so they do not drive the face (they may still "
+            f"give the head's motion): {list(ignored)}",
             FacecapWarning,
             stacklevel=stacklevel,
         )

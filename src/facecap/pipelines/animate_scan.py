@@ -207,7 +207,9 @@ def animate_scan(
 
     t0 = time.perf_counter()
     # Checked before the long set-up: the map against the take, and a neutral take against its labels
-    matched, _, _ = check_take_against_map(markers, correspondence, rest_frame)
+    with warnings.catch_warnings():  # its notes (unmapped markers) are given once, by the conditioning beside the set-up
+        warnings.simplefilter("ignore", FacecapWarning)
+        matched, _, _ = check_take_against_map(markers, correspondence, rest_frame)
     shared = len(set(neutral.labels) & set(matched.labels)) if isinstance(neutral, MarkerSequence) else MIN_DRIVING_MARKERS
     if shared < MIN_DRIVING_MARKERS:
         raise MarkerError(f"the neutral take holds {shared} of the map's markers; at least {MIN_DRIVING_MARKERS} are needed",

@@ -35,7 +35,7 @@ class WarningAdvice(NamedTuple):
 # (pattern, meaning, action), first match wins: the more specific patterns come first.
 _CATALOGUE: tuple[tuple[str, str, str], ...] = (
     # markers and the map
-    (r"not in the correspondence map and are ignored",
+    (r"not in the (correspondence|marker) map",
      "These markers of the take have no place on the scan in the marker map, so they do not drive the face.",
      "Nothing, if they are head-band or other reference markers (they can still serve to find the head's "
      "motion). If a face marker is listed, add it to the map or check that its label matches the take's."),
@@ -200,7 +200,7 @@ def explain_warning(message: str) -> WarningAdvice:
 
     Examples
     --------
-    >>> advice = explain_warning("4 take marker(s) are not in the correspondence map and are ignored: ['HB0']")
+    >>> advice = explain_warning("4 take marker(s) are not in the marker map, so they do not drive the face: ['HB0']")
     >>> advice.known, advice.meaning.startswith("These markers of the take have no place on the scan")
     (True, True)
     >>> explain_warning("something new").known
