@@ -132,6 +132,27 @@ def test_info_describes_a_compact_result(capture_case, tmp_path, capsys):
     assert info["frames"] == 40 and info["frames_in"].startswith("rig/ (vertex-weights, 30 x 400, int16, error bound")
 
 
+def test_export_gltf_writes_the_page_animate_writes_and_the_report_lists_it(capture_case, tmp_path):
+    # the README: export writes the same files as --export would; for glTF that is the GLB and the page
+    # that plays it, and the result's report.html then links that page
+    streamed, exported = tmp_path / "streamed", tmp_path / "exported"
+    _animate(capture_case, streamed, "--export", "gltf")
+    _animate(capture_case, exported)
+    assert 'href="review.html"' not in (exported / "report.html").read_text()
+    assert main(["-q", "export", str(exported), "--format", "gltf"]) == 0
+    written = {p.name for p in exported.iterdir()}
+    assert {"performance.glb", "review.html"} <= written
+    assert {p.name for p in streamed.iterdir()} == written
+    assert 'href="review.html"' in (exported / "report.html").read_text()
+    info = json.loads((exported / "performance.json").read_text())
+    assert {"performance.glb", "review.html"} <= set(info["exports_report"]["gltf"]["files"])
+    assert info["files"]["report.html"] == (exported / "report.html").stat().st_size  # listed at its new size
+    # exported again: both are refused together without --overwrite, nothing touched
+    before = (exported / "review.html").stat().st_mtime_ns
+    assert main(["-q", "export", str(exported), "--format", "gltf"]) == 2
+    assert (exported / "review.html").stat().st_mtime_ns == before
+
+
 def test_view_writes_the_pages_with_the_true_error(capture_case, tmp_path, capsys):
     from facecap.report import evaluate_result
 
@@ -196,8 +217,11 @@ def test_an_export_adds_to_the_result_and_removes_nothing(capture_case, tmp_path
     # a new format beside it: added; the rest mesh both caches share is this result's, so it is no conflict
     assert main(["-q", "export", str(out), "--format", "pc2"]) == 0
     after = _files(out)
-    assert {k: v for k, v in after.items() if k in before and k != "performance.json"} == \
-        {k: v for k, v in before.items() if k != "performance.json"}
+    # everything kept as it was, but the two files that list the exports (written again, with pc2 in them)
+    listings = {"performance.json", "report.html"}
+    assert {k: v for k, v in after.items() if k in before and k not in listings} == \
+        {k: v for k, v in before.items() if k not in listings}
+    assert b"pc2" not in before["report.html"] and b"pc2" in after["report.html"]
     assert set(after) - set(before) == {"performance.pc2"}
     info = json.loads((out / "performance.json").read_text())
     assert info["exports"] == ["mdd", "pc2"] and set(info["exports_report"]) == {"mdd", "pc2"}

@@ -97,7 +97,9 @@ def export_files(result: Result, fmt: str, *, export_frame: str = "stabilized", 
         return [] if skip_streamed else [f"{fmt}/"]
     if fmt in ("mdd", "pc2"):
         return [f"performance{world}.{fmt}", REST_OBJ_FILE]
-    return [{"gltf": "performance.glb", "abc": f"performance{world}.abc"}[fmt]]
+    if fmt == "gltf":
+        return ["performance.glb", "review.html"]  # the page that plays it beside it
+    return [f"performance{world}.abc"]
 
 
 def file_sizes(folder: str | os.PathLike[str]) -> dict[str, int]:

@@ -81,6 +81,7 @@ def export_result(
     skip_streamed: bool = False,
     progress: bool = False,
     usd_principal: dict[str, Any] | Future | None = None,
+    pages: bool = True,
 ) -> dict[str, Any]:
     """Write ``formats`` of a finished result, adding to the folder and removing nothing.
 
@@ -125,6 +126,11 @@ def export_result(
         The USD rig's principal components computed already (:func:`usd_principal_components` of this
         result's rig and ``usd_shapes``, whose warning the caller has given), or being computed on another
         thread (waited for when the USD rig is written); default None: computed here.
+    pages : bool, default True
+        Write ``review.html`` beside a glTF (the page that plays it, as a run
+        with ``--export gltf`` does) and, exporting into the result folder,
+        its ``report.html`` again (it lists the exports). False for a job that
+        writes its pages itself after its exports.
 
     Returns
     -------
@@ -175,8 +181,19 @@ def export_result(
             entry["head_motion"] = ("baked into the points (x_world = R_t x + t_t)" if result.head_motion is not None
                                     else "none: the result is not stabilised, its frames are the world's")
         report[f"{fmt}_world" if world else fmt] = entry
+    if pages and "gltf" in report:
+        from ..report.review_page import write_review_page
+
+        write_review_page(target / "review.html", target / "performance.glb", title=f"facecap: {result.path.name}",
+                          rate=result.rate, n_frames=result.n_frames)
+        report["gltf"]["files"].update(_sizes(target / "review.html"))
     if target == result.path:
         _record(result.path, report)
+        if pages and (result.path / "report.html").is_file():  # the page lists the exports: written again
+            from ..report.write_run_report import write_run_report
+
+            write_run_report(result.path)
+            _record(result.path, {})  # the page's new size
     return report
 
 

@@ -70,7 +70,8 @@ def finish_result(writer: PerformanceWriter, metadata: dict[str, Any]) -> Path:
         # written again after them with the exports' results. Only a draft is lost if that first page fails.
         with ThreadPoolExecutor(1) as beside_exports:  # waits for the draft; a draft that failed is not looked at
             beside_exports.submit(write_run_report, staging, drawn_plots=plots)
-            export_result(staging, later, progress=options.pop("progress", False), skip_streamed=True, **options)
+            export_result(staging, later, progress=options.pop("progress", False), skip_streamed=True, pages=False,
+                          **options)
     glb = staging / "performance.glb"
     if glb.is_file():
         write_review_page(staging / "review.html", glb, title=f"facecap: {writer.out_dir.name}",

@@ -63,7 +63,7 @@ def view_result(
     result = read_result(result_dir)
     glb = result.path / "performance.glb"
     if not glb.is_file():
-        export_result(result, "gltf", progress=progress)
+        export_result(result, "gltf", progress=progress, pages=False)  # the pages: below, with the error
     error = error_frames = None
     if truth is not None:
         error, error_frames = _error_rows(result, truth, frame, glb, error_rows)
