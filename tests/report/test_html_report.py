@@ -267,7 +267,8 @@ REPORT = {
                     "max_rotation_deg": 6.25, "max_translation_mm": 12.5,
                     "warnings": ["the rigid set for the head motion holds lip_up, a marker on the lips"]},
     "rest_pose": {"mode": "expression", "chosen_by": "auto", "reason": "the mismatch is 8 times the noise",
-                  "noise_mm": 0.05, "mismatch_rms_mm": 0.42, "expression_rms_mm": 0.38, "placement_rms_mm": 0.15,
+                  "noise_mm": 0.05, "rest_noise_mm": 0.02, "mismatch_rms_mm": 0.42, "expression_rms_mm": 0.38,
+                  "placement_rms_mm": 0.15,
                   "per_marker_mm": {"brow_L": 0.2, "brow_R": 0.25, "nose": 0.05, "chin": 0.9, "lip_up": 1.06,
                                     "lip_down": 0.7}},
     "notes": ["9 occluded marker samples filled"],
@@ -322,8 +323,10 @@ def test_quality_figures_and_warnings_are_explained(tmp_path: Path, fast_plots: 
     text = _text(write_html_report(tmp_path / "r.html", _folder(tmp_path), report=REPORT))
     quality = text[text.index("\nQuality\n"):text.index("\nWarnings\n")]
     assert "median 0.475 mm, largest 7.5 mm (chin); flagged: chin" in quality
-    assert "mismatch 0.42 mm RMS after the rigid fit, against noise of 0.05 mm; of which shared by neighbours " \
-           "0.38 mm RMS and each marker's own 0.15 mm RMS" in quality
+    # the noise named is the one the reason's "times the noise" means: the rest markers' in 3-D (sqrt(3) x 0.02)
+    assert "mismatch 0.42 mm RMS after the rigid fit, against the rest frame's noise of 0.0346 mm (3-D) and a " \
+           "single frame's 0.05 mm a coordinate; of which shared by neighbours 0.38 mm RMS and each marker's own " \
+           "0.15 mm RMS" in quality
     assert "Farthest: lip_up 1.06 mm, chin 0.9 mm" in quality
     assert "largest 0.03 mm (frame 102)" in quality  # frame numbers are the take's
     assert "9 of 36 marker samples (25%)" in quality

@@ -659,10 +659,18 @@ def _rest_pose(run: _Run, plot: _Plotter) -> _Block | None:
     if not isinstance(rest, Mapping):
         return None
     noise, mismatch = _float(rest.get("noise_mm")), _float(rest.get("mismatch_rms_mm"))
+    rest_noise = _float(rest.get("rest_noise_mm"))
     parts = [_rest_pose_phrase(rest, run.report.get("rest_frame", run.performance.get("rest_frame")))]
     if mismatch is not None:
+        # the noise the mismatch is weighed against is the rest markers' (averaged over the rest window) in 3-D,
+        # as the sentence above states it; a single frame's per coordinate is another, larger, figure
+        against = []
+        if rest_noise is not None:
+            against.append(f"the rest frame's noise of {_quantity(np.sqrt(3.0) * rest_noise, 'mm')} (3-D)")
+        if noise is not None:
+            against.append(f"a single frame's {_quantity(noise, 'mm')} a coordinate")
         parts.append(f"mismatch {_quantity(mismatch, 'mm')} RMS after the rigid fit"
-                     + (f", against noise of {_quantity(noise, 'mm')}" if noise is not None else ""))
+                     + (f", against {' and '.join(against)}" if against else ""))
     split = [f"{name} {_quantity(v, 'mm')} RMS" for name, v in
              (("shared by neighbours", _float(rest.get("expression_rms_mm"))),
               ("each marker's own", _float(rest.get("placement_rms_mm"))))
