@@ -169,7 +169,7 @@ def test_matching_to_a_take(tmp_path):
     assert corr.labels == ("a", "b", "c")  # take order
 
     full = read_correspondence(path, mesh)
-    with pytest.warns(FacecapWarning, match="not in the correspondence map") as record:
+    with pytest.warns(FacecapWarning, match="not in the marker map, so they do not drive the face") as record:
         match = match_correspondence(full, take_labels)
     assert record[0].filename == __file__
     assert isinstance(match, CorrespondenceMatch)
