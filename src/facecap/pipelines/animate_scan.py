@@ -207,7 +207,8 @@ def animate_scan(
 
     t0 = time.perf_counter()
     # Checked before the long set-up: the map against the take, and a neutral take against its labels
-    with warnings.catch_warnings():  # its notes (unmapped markers) are given once, by the conditioning beside the set-up
+    # its notes (unmapped markers) are given once, by the conditioning beside the set-up
+    with warnings.catch_warnings():
         warnings.simplefilter("ignore", FacecapWarning)
         matched, _, _ = check_take_against_map(markers, correspondence, rest_frame)
     shared = len(set(neutral.labels) & set(matched.labels)) if isinstance(neutral, MarkerSequence) else MIN_DRIVING_MARKERS

@@ -225,7 +225,8 @@ def register_template_to_scans(
             if seen.tobytes() not in systems:
                 rows = np.repeat(np.arange(int(seen.sum())), 3)
                 C = sp.csr_matrix((Wm[seen].ravel(), (rows, back[K[seen]].ravel())), shape=(int(seen.sum()), n))
-                base = (marker_weight * (C.T @ C) + laplacian_weight * LtL + rest_weight * sp.eye(n, format="csr")).tocsr()
+                base = (marker_weight * (C.T @ C) + laplacian_weight * LtL
+                        + rest_weight * sp.eye(n, format="csr")).tocsr()
                 # a tiny identity term keeps the system definite where L and C leave translations free
                 eps = 1e-9 * max(float(base.diagonal().mean()), 1e-12)
                 systems[seen.tobytes()] = (C, base, eps, SpdFactor((base + eps * sp.eye(n)).tocsr(), backend=backend))
