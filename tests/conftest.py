@@ -3,6 +3,14 @@ model of the bundled ICT face that the anatomy, muscle and muscle CLI tests shar
 
 from __future__ import annotations
 
+import os
+
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    # The suite runs on one worker process per core (pyproject's addopts): a BLAS thread pool per worker
+    # as wide as the machine would only fight the other worker for its core. Set before numpy loads.
+    for _variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
+        os.environ.setdefault(_variable, "1")
+
 from pathlib import Path
 
 import pytest

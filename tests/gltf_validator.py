@@ -12,20 +12,20 @@ from __future__ import annotations
 import json
 import shutil
 import subprocess
-import threading
 from pathlib import Path
 
 import numpy as np
 import pygltflib
 
+from tool_install import install_lock
+
 ROOT = Path(__file__).resolve().parents[1]
 TOOLS = ROOT / "tools" / "gltf-validator"
-_install_lock = threading.Lock()
 
 
 def _ensure_installed() -> None:
-    """Run ``npm ci`` once if the pinned packages are not installed yet."""
-    with _install_lock:
+    """Run ``npm ci`` once if the pinned packages are not installed yet (one process at a time)."""
+    with install_lock("gltf-validator-npm"):
         wanted = [TOOLS / "node_modules" / name / "package.json" for name in ("gltf-validator", "meshoptimizer")]
         if all(path.exists() for path in wanted):
             return

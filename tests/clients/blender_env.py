@@ -19,14 +19,14 @@ pip's output and the test that asked fails with it.
 
 from __future__ import annotations
 
-import fcntl
 import json
-import os
 import shutil
 import subprocess
 import sys
 import time
 from pathlib import Path
+
+from tool_install import cache_root, install_lock
 
 BLENDER_VERSION = "5.0.1"
 """The ``bpy`` release the client check runs (the last one built for CPython 3.11)."""
@@ -45,15 +45,6 @@ _READY = "facecap-ready.json"
 
 class BlenderEnvironmentError(RuntimeError):
     """The Blender environment could not be built or does not work; the message holds the output."""
-
-
-def cache_root() -> Path:
-    """The folder holding the test tools' cached environments."""
-    if os.environ.get("FACECAP_TEST_CACHE"):
-        return Path(os.environ["FACECAP_TEST_CACHE"]).expanduser()
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
-    return base / "facecap-tests"
 
 
 def environment_dir() -> Path:
@@ -127,9 +118,7 @@ def blender_python() -> Path:
     python = _venv_python(env)
     if (env / _READY).exists() and _works(python):
         return python
-    env.parent.mkdir(parents=True, exist_ok=True)
-    with open(env.parent / f"{env.name}.lock", "w") as lock:
-        fcntl.flock(lock, fcntl.LOCK_EX)  # another test run may be building it right now
+    with install_lock(env.name):  # another test run or worker may be building it right now
         if (env / _READY).exists() and _works(python):
             return python
         if env.exists():

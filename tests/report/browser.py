@@ -15,6 +15,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import urlsplit
 
+from tool_install import install_lock
+
 CHROMIUM = Path("/usr/lib/chromium/chromium-headless-shell")
 """The real binary (``/usr/bin/chromium-headless-shell`` is a shell wrapper around it)."""
 
@@ -47,10 +49,13 @@ def chromium_path() -> Path:
         return CHROMIUM
     if shutil.which("apt-get") is None:
         raise RuntimeError(f"{CHROMIUM} is missing and apt-get is not available to install chromium-headless-shell")
-    done = _apt_install()
-    if done.returncode != 0:
-        subprocess.run(["apt-get", "update"], capture_output=True, text=True, check=False)
+    with install_lock("chromium-apt"):  # a second worker would fail on dpkg's lock
+        if CHROMIUM.is_file():
+            return CHROMIUM
         done = _apt_install()
+        if done.returncode != 0:
+            subprocess.run(["apt-get", "update"], capture_output=True, text=True, check=False)
+            done = _apt_install()
     if done.returncode != 0 or not CHROMIUM.is_file():
         raise RuntimeError(f"could not install chromium-headless-shell:\n{done.stdout[-2000:]}\n{done.stderr[-2000:]}")
     return CHROMIUM
