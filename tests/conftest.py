@@ -7,7 +7,8 @@ import os
 
 if os.environ.get("PYTEST_XDIST_WORKER"):
     # The suite runs on one worker process per core (pyproject's addopts): a BLAS thread pool per worker
-    # as wide as the machine would only fight the other worker for its core. Set before numpy loads.
+    # as wide as the machine would only fight the other worker for its core. Set before numpy loads (the same
+    # choice as the package's own worker processes, facecap._processes, which cannot be imported before numpy).
     for _variable in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         os.environ.setdefault(_variable, "1")
 

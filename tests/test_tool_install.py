@@ -22,7 +22,10 @@ def test_a_second_process_waits_for_the_install_in_progress(tmp_path: Path, monk
          "    with open(sys.argv[2], 'a') as f: f.write('first out\\n')\n",
          str(Path(__file__).parent), str(log), str(HOLD_S)],
     )
+    deadline = time.monotonic() + 30
     while not log.exists():  # the first process holds the lock once it has written
+        assert first.poll() is None, "the first process ended before it took the lock"
+        assert time.monotonic() < deadline, "the first process never took the lock"
         time.sleep(0.01)
     with install_lock("tool"), log.open("a") as f:
         f.write("second in\n")
